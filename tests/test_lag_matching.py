@@ -19,7 +19,6 @@ from stewart_drake.station.surrogate.lag_matching import (
     MAX_DELAY_S,
     MAX_RATE,
     PlatformLagMatch,
-    principal_translation,
 )
 
 H = 0.01
@@ -121,14 +120,6 @@ def test_wrong_settings_are_refused(change, words):
     args = dict(period_s=H, reference=np.zeros(5), reference_rate=np.zeros(5), axis=Z) | change
     with pytest.raises(InvalidConfigError, match=words):
         PlatformLagMatch(**args)
-
-
-def test_the_principal_translation_is_the_one_that_moves_most():
-    x = np.zeros((100, 6))
-    x[:, 0] = np.linspace(0, 1, 100)  # a rotation is never the axis
-    x[:, 4] = np.linspace(0, 0.01, 100)
-    x[:, 5] = np.linspace(0, 0.004, 100)
-    assert principal_translation(x) == 4
 
 
 class _Line:

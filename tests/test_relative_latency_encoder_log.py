@@ -344,12 +344,38 @@ def test_model_options_refused_in_one_line(tmp_path, cranks, capsys, options, wo
 
 
 @pytest.mark.slow
-def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_latency(tmp_path):
+def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_latency(
+    tmp_path, monkeypatch
+):
     """``robot breathing --surrogate RESP`` on the bus emulator (the robot's plant and the
     surrogate's lead-screw stage behind one bus, on the commanded clock), then ``verify`` with its
     encoder log for both: the relative latency agrees with the one the run measured from the
     same encoders by its own method (``encoder_relative_latency``: each lag a delay of the
-    reading behind its command) to 5 ms (16.0 ms against 17.1 ms when written)."""
+    reading behind its command) to 5 ms (16.0 ms against 17.1 ms when written).
+
+    And the robot's session and the simulated Diagram pick one direction and one relative
+    latency: the session's lag matching and its verdict judge the platform along the direction
+    the Diagram's surrogate signal carries (the principal direction of the breathing's
+    translations, X: its superior-inferior axis), and the Diagram's pair report
+    (``sync_figures.relative_latency``) on the session's own samples gives each lag and their
+    difference within 0.5 ms."""
+    from stewart_drake.live import encoder_relative_latency, session
+    from stewart_drake.station.surrogate.axis import SurrogateAxis
+    from stewart_drake.station.surrogate.sync_figures import relative_latency
+
+    judged, matched = [], []
+    measure, lag_match = encoder_relative_latency.relative_latency, session._lag_match
+
+    def measure_and_keep(*args, **kwargs):
+        judged.append((args, kwargs))
+        return measure(*args, **kwargs)
+
+    def lag_match_and_keep(*args):
+        matched.append(lag_match(*args))
+        return matched[-1]
+
+    monkeypatch.setattr(encoder_relative_latency, "relative_latency", measure_and_keep)
+    monkeypatch.setattr(session, "_lag_match", lag_match_and_keep)
     from conftest import LOADED_MACHINE_BUS, bus_emulator, extra_missing
 
     if extra_missing("robot"):
@@ -392,3 +418,25 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
         run.relative_latency.relative_s, abs=5e-3
     ), (figures["relative"]["line"], run.relative_latency.line())
     assert figures["relative"]["meaningful"], figures["relative"]["line"]
+    # One direction: the Diagram's signal's (its lag matching follows it), the session's lag
+    # matching's and its verdict's.
+    motion = scenario.reference.make(None, scenario.duration_s, None)  # as the Diagram makes it
+    diagram_u = SurrogateAxis(trace=str(resp)).signal(motion, scenario.duration_s).direction
+    assert len(matched) == 1 and len(judged) == 1
+    np.testing.assert_allclose(diagram_u, (1, 0, 0), atol=1e-6)
+    np.testing.assert_allclose(matched[0].direction, diagram_u, atol=1e-6)
+    np.testing.assert_allclose(run.relative_latency.platform_direction, diagram_u, atol=1e-6)
+    assert run.relative_latency.platform_axis == "X"
+    # One relative latency: the Diagram's report's function on the session's samples.
+    (t, x_m, x_c, s_m), kw = judged[0][0][:4], judged[0][1]
+    w = t >= kw["t_from"]
+    diagram = relative_latency(t[w], x_c[w], x_m[w], kw["s_reference"][w], s_m[w])
+    np.testing.assert_allclose(diagram["direction"], diagram_u, atol=1e-6)
+    assert abs(diagram["relative_latency_s"] - run.relative_latency.relative_s) < 5e-4, (
+        diagram,
+        run.relative_latency.line(),
+    )
+    # Each lag alike, and lags to agree on (the platform's about 17 ms), not zeros.
+    assert abs(diagram["delay_internal_s"] - run.relative_latency.platform_lag_s) < 5e-4
+    assert abs(diagram["delay_external_s"] - run.relative_latency.surrogate_lag_s) < 5e-4
+    assert run.relative_latency.platform_lag_s > 5e-3

@@ -4,15 +4,17 @@ Each axis is judged against its own reference on the run's one clock (the Diagra
 each control period, logged with the period's reading):
 
 - the **lag** L of an axis is the shift delta that minimises the RMS difference between what
-  its encoders measured, y(t_k), and its reference shifted later by delta, c(t_k - delta)
-  (linearly interpolated between its logged samples; delta searched in [-``max_lag_s``,
+  its encoders measured, y(t_k), and its reference shifted later by delta, c(t_k - delta), less
+  their mean difference (a constant offset, as the Diagram's pair report removes it) (linearly
+  interpolated between its logged samples; delta searched in [-``max_lag_s``,
   +``max_lag_s``], every shift on the samples' step at once by FFT, then refined by a bounded
   scalar minimisation to 1 us: :func:`stewart_drake.base.lag.signal_lag`, IntERAct's RMSE
   alignment, Kaczynska et al. 2026, in continuous shifts). L > 0: the axis moves after its
   reference.
 - the platform's y and c: its pose from the crank encoders (forward kinematics) and the
-  reference's pose, along the **translation of the reference that moves most** (peak to peak
-  over the judged window), m; the surrogate's: the carriage's position from its servo's
+  reference's pose, along the **principal direction** of the reference's translations over the
+  judged window (:func:`~stewart_drake.base.signals.principal_direction`, as the Diagram's pair
+  report and lag matching take it), m; the surrogate's: the carriage's position from its servo's
   encoder (``s``) and its reference on the run's clock (``s_ref``: its trace where the
   platform's reference is, before any delay lag matching gave its command), m. So a delay given
   to the carriage's command to match the platform's lag
@@ -39,7 +41,7 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..base.lag import signal_lag
-from ..robot.kinematics import AXIS_NAMES
+from ..base.signals import direction_words, principal_direction
 
 #: The longest lag searched, s.
 MAX_LAG_S = 0.5
@@ -69,7 +71,9 @@ def axis_lag(t, measured, commanded, max_lag_s: float = MAX_LAG_S, still_below: 
             f"{y.shape}, {c.shape}"
         )
     # The package's one lag search: every shift by FFT on the samples' step, then to 1 us.
-    return signal_lag(t, y, c, max_lag_s, still_below=still_below, min_samples=MIN_SAMPLES)
+    return signal_lag(
+        t, y, c, max_lag_s, offsets=True, still_below=still_below, min_samples=MIN_SAMPLES
+    )
 
 
 @dataclass(frozen=True)
@@ -80,13 +84,16 @@ class RelativeLatency:
         relative_s: L_platform - L_surrogate, s (> 0: the platform lags); NaN when an axis
             is still.
         surrogate_lag_s, platform_lag_s: each axis's lag against its own command, s.
-        platform_axis: the platform's coordinate judged ("X", "Y" or "Z").
+        platform_axis: the direction the platform is judged along, in words ("X", "Y", "Z" or
+            its components: :func:`~stewart_drake.base.signals.direction_words`).
         surrogate_rms_m, platform_rms_m: the RMS residual at each lag, m.
         tolerance_s: the verdict's bound on |relative_s|, s. samples: samples judged.
         servo_lag_s: the carriage's lag behind the command it was given (``s_cmd``), s;
             NaN when judged against that command itself.
         matching_delay_s: the mean delay lag matching gave the carriage's command over the
             window, s (NaN: none was given).
+        platform_direction: (3,) the unit direction the platform is judged along: the principal
+            direction of its reference's translations over the window.
     """
 
     relative_s: float
@@ -99,6 +106,7 @@ class RelativeLatency:
     samples: int
     servo_lag_s: float = math.nan
     matching_delay_s: float = math.nan
+    platform_direction: tuple = (0.0, 0.0, 1.0)
 
     @property
     def passed(self) -> bool:
@@ -182,10 +190,11 @@ def relative_latency(
         raise InvalidConfigError(f"tolerance_s must be > 0 s, got {tolerance_s}")
     window = t >= t_from
     t_w = t[window]
-    translations = x_c[window][:, 3:]
-    k = 3 + int(np.argmax(np.ptp(translations, axis=0))) if len(t_w) else 5
+    # Along the principal direction of the reference's translations over the window, the one
+    # the Diagram's pair report and lag matching use (base/signals.py).
+    u = principal_direction(x_c[window]) if len(t_w) >= 2 else np.array([0.0, 0.0, 1.0])
     lag_p, rms_p = axis_lag(
-        t_w, x_m[window, k], x_c[window, k], max_lag_s, still_below=20 * x_count_m
+        t_w, x_m[window, 3:] @ u, x_c[window, 3:] @ u, max_lag_s, still_below=20 * x_count_m
     )
     s_m, s_c = np.asarray(s_measured, dtype=float), np.asarray(s_commanded, dtype=float)
     if s_m.shape != t.shape or s_c.shape != t.shape:
@@ -216,7 +225,8 @@ def relative_latency(
         relative_s=lag_p - lag_s,
         surrogate_lag_s=lag_s,
         platform_lag_s=lag_p,
-        platform_axis=AXIS_NAMES[k],
+        platform_axis=direction_words(u),
+        platform_direction=tuple(float(v) for v in u),
         surrogate_rms_m=rms_s,
         platform_rms_m=rms_p,
         tolerance_s=float(tolerance_s),

@@ -278,15 +278,21 @@ def _command_surrogate(driver, surrogate, homed, scenario) -> None:
 
 def _lag_match(homed, period_s: float, t_end: float):
     """The platform's lag estimator (:class:`~..station.surrogate.lag_matching.PlatformLagMatch`)
-    on its reference sampled every period to ``t_end``, along the translation it moves most
-    after the lead-in (the axis the run's relative latency judges)."""
-    from ..station.surrogate.lag_matching import PlatformLagMatch, principal_translation
+    on its reference sampled every period to ``t_end``, along the principal direction of its
+    translations after the lead-in (:func:`~stewart_drake.base.signals.principal_direction`:
+    the direction the run's relative latency judges, and the Diagram's lag matching follows)."""
+    from ..base.signals import principal_direction
+    from ..station.surrogate.lag_matching import PlatformLagMatch
 
     t = np.arange(int(np.ceil(t_end / period_s)) + 1) * period_s
     x, v, _ = homed.evaluate(t)
     after = t >= homed.home_s
-    k = principal_translation(x[after] if np.count_nonzero(after) > 1 else x)
-    return PlatformLagMatch(period_s, x[:, k], v[:, k], k)
+    moving = x[after] if np.count_nonzero(after) > 1 else x
+    u = principal_direction(moving)
+    r, r_dot = x[:, 3:6] @ u, v[:, 3:6] @ u
+    if not np.ptp(moving[:, 3:6] @ u) > 0:  # a reference that holds still has no lag to learn
+        r, r_dot = np.zeros_like(r), np.zeros_like(r_dot)
+    return PlatformLagMatch(period_s, r, r_dot, u)
 
 
 def _stop(bus, driver, ended: RobotRun) -> None:

@@ -26,6 +26,7 @@ from pydrake.systems.primitives import (
 )
 
 from ..base.errors import InvalidConfigError
+from ..base.signals import principal_direction
 from ..control.contract import ControllerContext, LearnerContext, check_controller
 from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
@@ -333,8 +334,8 @@ def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, p
         # the target's delay (sync_figures.relative_latency).
         x, v, _ = trajectory.evaluate(samples[0])
         u = signal.direction
-        if u is None:  # not known: the translation that moves most
-            u = np.eye(3)[int(np.argmax(np.ptp(x[:, 3:6], axis=0)))]
+        if u is None:  # not known: the principal direction of the samples
+            u = principal_direction(x)
         match = PlatformLagMatch(h, x[:, 3:6] @ u, v[:, 3:6] @ u, u, t0=float(samples[0][0]))
     ports = add_surrogate_stage(
         builder,

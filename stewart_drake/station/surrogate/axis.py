@@ -9,10 +9,10 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ...base.errors import InvalidConfigError, MissingFileError
+from ...base.signals import principal_displacement
 from ...references.trace_files import TRACE_FORMATS
 from .correlation import CorrelationModel
 from .stage import SurrogateStage
-from .sync_figures import principal_displacement
 
 #: The grid the external signal is made on, s.
 SIGNAL_STEP_S = 1e-3

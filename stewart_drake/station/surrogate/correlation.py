@@ -5,9 +5,9 @@ change of lead and ratio mid-run), each from the literature (docs/surrogate.md, 
     e(t) = k(t) s(t + tau(t)) + drift t,
 
 s the internal's displacement along its first principal direction
-(:func:`~.sync_figures.principal_displacement`), k and tau the ratio and lead, each going from
-its value before ``change_at_s`` to its value after over ``change_blend_s`` by the quintic
-smoothstep. In the (internal, external) plane a lead draws the hysteresis loop, of area
+(:func:`~stewart_drake.base.signals.principal_displacement`), k and tau the ratio and lead,
+each going from its value before ``change_at_s`` to its value after over ``change_blend_s`` by
+the quintic smoothstep. In the (internal, external) plane a lead draws the hysteresis loop, of area
 pi A_i A_e sin(2 pi tau / T) per cycle on a sine of period T (:func:`sine_loop_area`).
 """
 

@@ -11,9 +11,10 @@ is 26 ms late on its external surrogate presents a 26 ms phase error the patient
 Delaying the carriage's command by the platform's lag makes the pair move as recorded, whatever
 the platform's controller. (IntERAct synchronises its two robots by their start only.)
 
-The estimate. Let y(t) be the platform's coordinate measured along its reference's principal
-translation (the one that moves most) and c(t) the reference's, so that y(t) ~ c(t - L) + b
-(a lag L and an offset b). Linearised about the estimate L_k in use at period k,
+The estimate. Let y(t) be the platform's translation measured along its reference's principal
+direction (:func:`~stewart_drake.base.signals.principal_direction`) and c(t) the reference's,
+so that y(t) ~ c(t - L) + b (a lag L and an offset b). Linearised about the estimate L_k in
+use at period k,
 
     r_k = y_k - c(t_k - L_k) ~ -(L - L_k) g_k + b,   g_k = c'(t_k - L_k),
 
@@ -63,9 +64,9 @@ class PlatformLagMatch:
         period_s: the control period, s (the reference's samples' step).
         reference: (n,) the platform's reference along ``axis`` at t0, t0 + h, t0 + 2h, ... s, m.
         reference_rate: (n,) its rate there, m/s.
-        axis: the pose coordinate (3, 4 or 5: X, Y, Z) the reference moves most along, or a
-            (3,) unit direction of the translation (the principal direction of its motion):
-            the platform's coordinate is its translation along it.
+        axis: a pose coordinate (3, 4 or 5: X, Y, Z), or a (3,) unit direction of the
+            translation (the principal direction of its motion): the platform's coordinate is
+            its translation along it.
         memory_s, max_rate, max_delay_s, min_speed_m_s: the module's constants by default.
         t0: the time of the reference's first sample, s.
     Attributes:
@@ -171,13 +172,6 @@ class PlatformLagMatch:
         target = min(max(estimate, -self.max_delay_s), self.max_delay_s)
         state[5] = d + min(max(target - d, -self._step), self._step)
         return float(estimate)
-
-
-def principal_translation(reference) -> int:
-    """The pose coordinate (3, 4 or 5) along which (n, 6) ``reference`` poses move most
-    (peak to peak), the axis the lag is measured on."""
-    x = np.asarray(reference, dtype=float)
-    return 3 + int(np.argmax(np.ptp(x[:, 3:], axis=0)))
 
 
 def _direction(axis) -> np.ndarray:

@@ -8,8 +8,9 @@ import re
 import numpy as np
 
 from ...base.errors import InvalidConfigError
+from ...base.signals import principal_displacement
 from .correlation import CorrelationModel
-from .sync_figures import pair_figures, principal_displacement, relative_latency
+from .sync_figures import pair_figures, relative_latency
 
 #: ``--surrogate-param`` keys: the :class:`~.correlation.CorrelationModel` field each sets.
 MODEL_KEYS = {

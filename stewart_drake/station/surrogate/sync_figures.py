@@ -24,6 +24,7 @@ import numpy as np
 
 from ...base.errors import InvalidConfigError
 from ...base.lag import signal_lag
+from ...base.signals import principal_direction
 
 
 def _uniform(t: np.ndarray) -> float:
@@ -34,23 +35,6 @@ def _uniform(t: np.ndarray) -> float:
     if np.max(np.abs(dt - h)) > 1e-6 * max(h, 1e-9) + 1e-9:
         raise InvalidConfigError("a pair's figures need samples at a uniform step")
     return h
-
-
-def principal_displacement(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The internal motion along its main direction.
-
-    Args:
-        x: (n, 6) poses [phi, theta, psi rad, X, Y, Z m] or (n, 3) translations, m.
-    Returns:
-        (s (n,) m about its mean, u (3,) the unit direction: the translations' first principal
-        axis, signed so that its largest component is positive).
-    """
-    p = np.asarray(x, float)
-    p = p[:, 3:6] if p.shape[1] == 6 else p
-    c = p - p.mean(axis=0)
-    u = np.linalg.svd(c, full_matrices=False)[2][0]
-    u = u if u[np.argmax(np.abs(u))] > 0 else -u
-    return c @ u, u
 
 
 def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
@@ -79,21 +63,41 @@ def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
 def relative_latency(
     t, internal, internal_measured, external, external_measured, max_s: float = 0.5
 ) -> dict:
-    """The relative latency of a reproduced pair, the one definition (module docstring).
+    """The relative latency of a pair, the one definition (module docstring): the internal
+    target's delay along its principal direction (:func:`~stewart_drake.base.signals.
+    principal_direction` of its command's translations) less the surrogate's, each by
+    :func:`delay_s` (a constant offset removed). The robot's session measures its own with the
+    same (:func:`~stewart_drake.live.encoder_relative_latency.relative_latency`).
 
     Args:
         t: (n,) uniform s, the one clock of both.
-        internal, internal_measured: (n,) or (n, k) the internal target as commanded and as
-            reproduced (e.g. (n, 3) translations, m).
+        internal, internal_measured: (n, 6) poses or (n, 3) translations, m, of the internal
+            target as commanded and as reproduced; or (n,) a displacement already along one
+            direction.
         external, external_measured: (n,) the surrogate as commanded and as reproduced, m.
         max_s: the largest delay searched, s.
     Returns:
         {"delay_internal_s", "delay_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
-        (:func:`delay_s` each; > 0: the internal late).
+        (> 0: the internal late), and "direction": the (3,) direction the internal's delay is
+        measured along (None for a displacement given along one).
+    Raises:
+        InvalidConfigError: as :func:`delay_s`; a principal direction of non-finite samples.
     """
-    d_i = delay_s(t, internal, internal_measured, max_s)
+    c = np.asarray(internal, float)
+    u = None
+    if c.ndim == 2:
+        u = principal_direction(c)
+        m = np.asarray(internal_measured, float)
+        c = (c[:, 3:6] if c.shape[1] == 6 else c) @ u
+        internal_measured = (m[:, 3:6] if m.shape[1] == 6 else m) @ u
+    d_i = delay_s(t, c, internal_measured, max_s)
     d_e = delay_s(t, external, external_measured, max_s)
-    return {"delay_internal_s": d_i, "delay_external_s": d_e, "relative_latency_s": d_i - d_e}
+    return {
+        "delay_internal_s": d_i,
+        "delay_external_s": d_e,
+        "relative_latency_s": d_i - d_e,
+        "direction": None if u is None else u.tolist(),
+    }
 
 
 def lead_s(t, internal, external, max_s: float = 2.0) -> float:
@@ -195,7 +199,7 @@ def pair_figures(t, internal, external, split_s: float | None = None, max_lead_s
 
     Args:
         t: (n,) uniform s. internal, external: (n,) m (the internal along its main direction,
-            :func:`principal_displacement`).
+            :func:`~stewart_drake.base.signals.principal_displacement`).
         split_s: where the relationship changes, s: the lead and correlation are also given
             before and after it ("lead_before_s", "lead_after_s", ...), or None.
         max_lead_s: the largest lead searched, s (at most a quarter of the record's length).

@@ -1,0 +1,76 @@
+"""A motion's main direction, defined once for every caller: the Diagram's surrogate signal and
+its lag matching, the robot session's lag matching and relative latency, and a reproduced pair's
+report.
+
+**The principal direction** of a motion's translations (:func:`principal_direction`): the first
+principal axis of its (n, 3) samples about their mean (the right singular vector of the largest
+singular value), signed so that its largest component is positive. A motion along one axis has
+that axis; a motion along a diagonal has the diagonal, where the coordinate that moves most
+(peak to peak) would see only part of it. The lag of a motion and its relative latency are
+measured along it (:func:`principal_displacement`, :func:`~.lag.signal_lag`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidConfigError
+
+
+def _translations(x) -> np.ndarray:
+    p = np.asarray(x, dtype=float)
+    if p.ndim != 2 or p.shape[1] not in (3, 6) or len(p) < 2:
+        raise InvalidConfigError(
+            f"a principal direction needs (n, 6) poses or (n, 3) translations, n >= 2, got "
+            f"{p.shape}"
+        )
+    if not np.all(np.isfinite(p)):
+        raise InvalidConfigError("a principal direction needs finite samples")
+    return p[:, 3:6] if p.shape[1] == 6 else p
+
+
+def principal_direction(x) -> np.ndarray:
+    """(3,) the unit principal direction of a motion's translations (module docstring).
+
+    Args:
+        x: (n, 6) poses [phi, theta, psi rad, X, Y, Z m] or (n, 3) translations, m; n >= 2.
+    Returns:
+        u (3,), the first principal axis of the translations about their mean, its largest
+        component positive; Z (0, 0, 1) for a motion that does not translate.
+    Raises:
+        InvalidConfigError: another shape, fewer than 2 samples, or a value not finite.
+    """
+    p = _translations(x)
+    c = p - p.mean(axis=0)
+    if not np.any(c):
+        return np.array([0.0, 0.0, 1.0])
+    u = np.linalg.svd(c, full_matrices=False)[2][0]
+    return u if u[np.argmax(np.abs(u))] > 0 else -u
+
+
+def principal_displacement(x) -> tuple[np.ndarray, np.ndarray]:
+    """A motion along its principal direction.
+
+    Args:
+        x: (n, 6) poses or (n, 3) translations, m (as :func:`principal_direction`).
+    Returns:
+        (s (n,) m about its mean, u (3,) :func:`principal_direction`).
+    Raises:
+        InvalidConfigError: as :func:`principal_direction`.
+    """
+    p = _translations(x)
+    u = principal_direction(p)
+    return (p - p.mean(axis=0)) @ u, u
+
+
+def direction_words(u) -> str:
+    """``u`` (3,) in words: the axis's name ("X", "Y" or "Z", with "-" for its negative) when
+    it is one to 1e-3, else its components, "(0.6, 0, 0.8)"."""
+    u = np.asarray(u, dtype=float)
+    k = int(np.argmax(np.abs(u)))
+    if abs(abs(u[k]) - 1.0) <= 1e-3:
+        return ("-" if u[k] < 0 else "") + "XYZ"[k]
+    return "(" + ", ".join(f"{v:.3g}" for v in u) + ")"
+
+
+__all__ = ["principal_direction", "principal_displacement", "direction_words"]

@@ -1,0 +1,103 @@
+"""The principal direction of a motion, one definition (stewart_drake/base/signals.py): checked
+against directions written down by hand, not against the code's own SVD."""
+
+import numpy as np
+import pytest
+
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.base.signals import (
+    direction_words,
+    principal_direction,
+    principal_displacement,
+)
+
+T = np.linspace(0.0, 8.0, 400)
+
+
+def _poses(direction, amplitude=0.01, rotation=0.0, offset=(0.0, 0.0, 0.25)):
+    """(n, 6) poses moving sin(t) along ``direction`` about ``offset``, rotating ``rotation``."""
+    u = np.asarray(direction, float) / np.linalg.norm(direction)
+    x = np.zeros((T.size, 6))
+    x[:, 0] = rotation * np.sin(3 * T)
+    x[:, 3:6] = np.asarray(offset) + amplitude * np.sin(T)[:, None] * u
+    return x
+
+
+@pytest.mark.parametrize(
+    ("direction", "expected"),
+    [
+        ((0, 0, 1), (0, 0, 1)),
+        ((0, 0, -1), (0, 0, 1)),  # signed: its largest component positive
+        ((3, 0, 4), (0.6, 0, 0.8)),
+        ((0, -4, 3), (0, 0.8, -0.6)),
+    ],
+)
+def test_the_direction_of_a_motion_along_a_line_is_that_line(direction, expected):
+    u = principal_direction(_poses(direction, rotation=0.5))  # a rotation is never counted
+    np.testing.assert_allclose(u, expected, atol=1e-12)
+    assert (
+        direction_words(u)
+        == {
+            (0, 0, 1): "Z",
+            (0.6, 0, 0.8): "(0.6, 0, 0.8)",
+            (0, 0.8, -0.6): "(0, 0.8, -0.6)",
+        }[expected]
+    )
+
+
+def test_a_diagonal_is_not_the_coordinate_that_moves_most():
+    """Along (0.6, 0, 0.8) Z moves most peak to peak, but the motion is the diagonal: its
+    displacement along it has the motion's whole amplitude, 10 mm, where Z sees 8."""
+    x = _poses((3, 0, 4))
+    s, u = principal_displacement(x)
+    assert np.ptp(s) == pytest.approx(0.01 * np.ptp(np.sin(T)), rel=1e-12)
+    assert np.ptp(x[:, 5]) == pytest.approx(0.8 * np.ptp(s), rel=1e-12)
+    assert abs(np.mean(s)) < 1e-15 and u[0] == pytest.approx(0.6)
+
+
+def test_an_elliptic_motion_takes_its_long_axis():
+    """X 10 mm and Y 4 mm in quadrature: the principal direction is X, not a blend."""
+    x = np.zeros((T.size, 3))
+    x[:, 0], x[:, 1] = 0.01 * np.sin(T * np.pi), 0.004 * np.cos(T * np.pi)
+    np.testing.assert_allclose(principal_direction(x), (1, 0, 0), atol=1e-9)
+
+
+def test_a_still_motion_has_z_and_wrong_samples_are_refused():
+    np.testing.assert_array_equal(principal_direction(np.ones((5, 6))), (0, 0, 1))
+    for bad, words in (
+        (np.zeros((5, 4)), r"\(n, 6\) poses or \(n, 3\) translations, n >= 2, got \(5, 4\)"),
+        (np.zeros((1, 6)), r"n >= 2, got \(1, 6\)"),
+        (np.full((5, 3), np.nan), "finite samples"),
+    ):
+        with pytest.raises(InvalidConfigError, match=words):
+            principal_direction(bad)
+
+
+def test_the_robots_verdict_and_the_diagrams_report_measure_one_lag_along_one_direction():
+    """A platform moving along the diagonal (0.6, 0, 0.8) 20 ms behind its command, 0.3 mm off
+    it on Z (a calibration offset), and a carriage 8 ms behind its own: the robot's verdict
+    (``encoder_relative_latency``) and the Diagram's pair report (``sync_figures``) both judge
+    the diagonal, find 20 and 8 ms to 0.1 ms, and agree on the relative latency, +12 ms, to
+    0.5 ms; Z, the coordinate that moves most, is not the direction judged."""
+    from stewart_drake.live.encoder_relative_latency import relative_latency as robots
+    from stewart_drake.station.surrogate.sync_figures import relative_latency as diagrams
+
+    t = np.arange(0.0, 12.0, 0.01)
+    u = np.array([0.6, 0.0, 0.8])
+
+    def breath(t):
+        return 0.008 * np.sin(2 * np.pi * t / 4.0) + 0.002 * np.sin(2 * np.pi * t / 1.3)
+
+    x_c, x_m = np.zeros((t.size, 6)), np.zeros((t.size, 6))
+    x_c[:, 3:6] = breath(t)[:, None] * u
+    x_m[:, 3:6] = breath(t - 0.020)[:, None] * u + np.array([0.0, 0.0, 3e-4])
+    s_c, s_m = breath(t + 0.5), breath(t + 0.5 - 0.008)
+    robot = robots(t, x_m, x_c, s_m, s_c, tolerance_s=0.01)
+    diagram = diagrams(t, x_c, x_m, s_c, s_m)
+    np.testing.assert_allclose(robot.platform_direction, u, atol=1e-9)
+    np.testing.assert_allclose(diagram["direction"], u, atol=1e-9)
+    assert robot.platform_axis == "(0.6, 0, 0.8)"
+    assert robot.platform_lag_s == pytest.approx(0.020, abs=1e-4)
+    assert robot.surrogate_lag_s == pytest.approx(0.008, abs=1e-4)
+    assert robot.relative_s == pytest.approx(0.012, abs=2e-4)
+    assert diagram["relative_latency_s"] == pytest.approx(robot.relative_s, abs=5e-4)
