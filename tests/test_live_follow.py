@@ -11,7 +11,7 @@ from stewart_drake.references.organ.library import make_motion
 from stewart_drake.references.prediction import PredictorSettings
 from stewart_drake.references.stream import Stream, follow, stream_of
 
-SETTINGS = PredictorSettings(min_record_s=2.0)
+SETTINGS = PredictorSettings(history_s=2.0, min_record_s=2.0)
 
 
 def _utime(t) -> int:
@@ -265,6 +265,6 @@ def test_live_and_offline_shape_the_same_reference_for_the_same_arrivals():
         want = np.concatenate([q[0] for q in offline.evaluate(np.array([now]))])
         worst = max(worst, float(np.max(np.abs(given - want))))
     assert worst < 1e-12, worst
-    mine, theirs = shaper.record, offline.record
+    mine, theirs = shaper.record_of(state), offline.record
     assert theirs.scaled >= 1 and mine.scaled == theirs.scaled and mine.shaped == theirs.shaped
     assert mine.departure_m == pytest.approx(theirs.departure_m, rel=1e-9, abs=1e-15)

@@ -34,8 +34,9 @@ from stewart_drake.run.shaping import (
 D = 16.0
 LATENCY_S = 0.2
 MOTION = make_motion("breathing", {})
-#: The predictor may be used after 2 s of record (5 s shipped): a short stream reaches it.
-SETTINGS = PredictorSettings(min_record_s=2.0)
+#: The predictor may be used after 2 s of history and 2 s of record (4 s and 5 s shipped): a short
+#: stream reaches it.
+SETTINGS = PredictorSettings(history_s=2.0, min_record_s=2.0)
 
 
 def noisy_stream(noise_m=100e-6, seed=1, duration_s=D, change_after_s=None) -> Stream:
@@ -110,7 +111,7 @@ def test_the_approach_to_the_followed_reference_keeps_teleops_box(plan, followed
     t = np.arange(0.0, 4.0, h)
     x, v, a = (np.asarray(q) for q in followed.evaluate(t))
     out = np.array([shaper.step(state, t[k], (x[k], v[k], a[k]))[0] for k in range(t.size)])
-    record = shaper.record
+    record = shaper.record_of(state)
     assert record.joined_s is not None and 0.3 < record.joined_s < 2.0
     before = t < record.joined_s
     assert record.approach == np.count_nonzero(before)
@@ -279,3 +280,32 @@ def test_the_following_filter_is_10_hz_and_stays_stable_at_a_long_period(plan):
         assert w == pytest.approx(want, rel=1e-12)
         assert radius(w, h) < 0.96
     assert radius(2 * np.pi * 10.0, 0.02) > 1.5
+
+
+def test_the_shapers_record_is_in_its_state():
+    """Every count of what was shaped lives in the state the caller keeps (a Drake system's
+    Context), none in the shaper: one shaper stepping two states apart keeps two records, and a
+    state copied mid-run and stepped again gives the same record twice."""
+    shaper = Shaper(
+        shaping_limits(make_plan(load_scenario("phantom_hardware"), with_reference=False))
+    )
+    x0 = np.asarray(MOTION.evaluate(0.0)[0])
+    at_rest, far = (
+        shaper.initial_state(x0),
+        shaper.initial_state(x0 - np.array([0, 0, 0, 0, 0, 0.01])),
+    )
+    for k in range(200):
+        t = k * shaper.h
+        followed = tuple(np.asarray(q) for q in MOTION.evaluate(t))
+        shaper.step(at_rest, t, followed)
+        shaper.step(far, t, followed)
+        if k == 99:
+            copy = far.copy()
+    a, b = shaper.record_of(at_rest), shaper.record_of(far)
+    assert a.periods == b.periods == 200
+    assert a.approach == 0 and a.joined_s == 0.0  # it starts on the motion
+    assert b.approach > 0 and (b.joined_s is None or b.joined_s > 0.0)
+    for k in range(100, 200):
+        t = k * shaper.h
+        shaper.step(copy, t, tuple(np.asarray(q) for q in MOTION.evaluate(t)))
+    assert shaper.record_of(copy) == b

@@ -160,8 +160,8 @@ class FollowReference(LeafSystem):
     Attributes:
         failure: why the source failed (one line), or None; from then on the reference comes
             to rest where it is.
-        shaper: the :class:`~stewart_drake.run.shaping.Shaper`; its ``record`` says what was
-            shaped.
+        shaper: the :class:`~stewart_drake.run.shaping.Shaper` (:meth:`record` says what it
+            shaped, from the Context).
     """
 
     X_D, T_FF = slice(0, 18), slice(18, 24)
@@ -269,8 +269,14 @@ class FollowReference(LeafSystem):
         """The holding torques the reference gave at times ``t`` (s), N m (its record)."""
         return self._held(t, slice(18, 24))
 
-    def summary(self) -> str:
-        """One line: what was received, predicted and shaped."""
+    def record(self, context):
+        """The :class:`~stewart_drake.run.shaping.ShapingRecord` of the periods shaped so far,
+        from this system's state in ``context`` (its own Context or the Diagram's)."""
+        mine = self.GetMyContextFromRoot(context)
+        return self.shaper.record_of(mine.get_discrete_state(self._state).get_value()[self.SHAPER])
+
+    def summary(self, context) -> str:
+        """One line: what was received, predicted and shaped (the shaping from ``context``)."""
         f = self.follower
         used = f.used_samples / f.received * 100 if f.received else 0.0
         return (
@@ -280,7 +286,7 @@ class FollowReference(LeafSystem):
             f"{'' if f.fallbacks == 1 else 's'} to no prediction where it stopped paying "
             f"({f.rejected} sample axes taken as outliers, {f.clipped} predicted positions "
             "clipped to the motion's recent range); the "
-            f"reference {self.shaper.record.words()}"
+            f"reference {self.record(context).words()}"
         )
 
 
@@ -411,7 +417,7 @@ def _follow(
         signals.hold()
         _stop(bus, None if sd is None else sd.station.driver, ended)
     if powered:
-        say(reference.summary())
+        say(reference.summary(simulator.get_context()))
         _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", _NoReferenceClock())
     return ended
 

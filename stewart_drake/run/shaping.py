@@ -196,35 +196,31 @@ class ShapingRecord:
     first_shaped_s: float | None = None
     first_limited_s: float | None = None
 
-    def joined(self, t: float, count: int = 1) -> None:
-        """Count ``count`` periods given the followed reference as it was, the first at ``t``
-        (s)."""
-        self.periods += count
-        if self.joined_s is None:
-            self.joined_s = float(t)
+    #: Its counts' order in the shaper's state (:data:`Shaper.RECORD`); a time not yet
+    #: reached is NaN there.
+    FIELDS = (
+        "periods", "approach", "joined_s", "shaped", "limited", "clipped", "scaled", "over",
+        "departure_m", "departure_rad", "first_shaped_s", "first_limited_s",
+    )  # fmt: skip
+    _TIMES = ("joined_s", "first_shaped_s", "first_limited_s")
 
-    def add(self, t: float, what: int, gap) -> None:
-        """Count a shaped period at ``t`` (s): ``what`` (the :class:`Shaper` flags) and
-        ``gap`` (6,) the shaped pose minus the followed one (None: nothing followed). Before
-        the reference first joins the followed one, the period is the approach (not counted
-        as shaped)."""
-        self.periods += 1
-        if self.joined_s is None:
-            self.approach += 1
-            return
-        self.shaped += 1
-        if self.first_shaped_s is None:
-            self.first_shaped_s = float(t)
-        if what & Shaper.LIMITED_FLAG:
-            self.limited += 1
-            if self.first_limited_s is None:
-                self.first_limited_s = float(t)
-        self.clipped += bool(what & Shaper.CLIPPED_FLAG)
-        self.scaled += bool(what & Shaper.SCALED_FLAG)
-        self.over += bool(what & Shaper.OVER_FLAG)
-        if gap is not None:
-            self.departure_m = max(self.departure_m, float(np.linalg.norm(gap[3:])))
-            self.departure_rad = max(self.departure_rad, float(np.linalg.norm(gap[:3])))
+    @classmethod
+    def initial_values(cls) -> np.ndarray:
+        """(len(:data:`FIELDS`),) the counts of no period: zeros, NaN for the times."""
+        return np.array([np.nan if f in cls._TIMES else 0.0 for f in cls.FIELDS])
+
+    @classmethod
+    def from_values(cls, period_s: float, values) -> ShapingRecord:
+        """The record the counts ``values`` (in the order of :data:`FIELDS`) say."""
+        out: dict = {}
+        for name, v in zip(cls.FIELDS, np.asarray(values, dtype=float), strict=True):
+            if name in cls._TIMES:
+                out[name] = None if np.isnan(v) else float(v)
+            elif name.startswith("departure"):
+                out[name] = float(v)
+            else:
+                out[name] = int(v)
+        return cls(period_s, **out)
 
     def as_dict(self) -> dict:
         """The record as plain numbers (the JSON's ``shaping``)."""
@@ -281,6 +277,41 @@ class ShapingRecord:
         )
 
 
+_R = {name: i for i, name in enumerate(ShapingRecord.FIELDS)}
+
+
+def _count_joined(r: np.ndarray, t: float, count: int = 1) -> None:
+    """Count in the record's values ``r`` (:data:`ShapingRecord.FIELDS`) ``count`` periods
+    given the followed reference as it was, the first at ``t`` (s)."""
+    r[_R["periods"]] += count
+    if np.isnan(r[_R["joined_s"]]):
+        r[_R["joined_s"]] = t
+
+
+def _count_shaped(r: np.ndarray, t: float, what: int, gap) -> None:
+    """Count in ``r`` a shaped period at ``t`` (s): ``what`` (the :class:`Shaper` flags) and
+    ``gap`` (6,) the shaped pose minus the followed one (None: nothing followed). Before the
+    reference first joins the followed one, the period is the approach (not counted as
+    shaped)."""
+    r[_R["periods"]] += 1
+    if np.isnan(r[_R["joined_s"]]):
+        r[_R["approach"]] += 1
+        return
+    r[_R["shaped"]] += 1
+    if np.isnan(r[_R["first_shaped_s"]]):
+        r[_R["first_shaped_s"]] = t
+    if what & Shaper.LIMITED_FLAG:
+        r[_R["limited"]] += 1
+        if np.isnan(r[_R["first_limited_s"]]):
+            r[_R["first_limited_s"]] = t
+    r[_R["clipped"]] += bool(what & Shaper.CLIPPED_FLAG)
+    r[_R["scaled"]] += bool(what & Shaper.SCALED_FLAG)
+    r[_R["over"]] += bool(what & Shaper.OVER_FLAG)
+    if gap is not None:
+        r[_R["departure_m"]] = max(r[_R["departure_m"]], float(np.linalg.norm(gap[3:])))
+        r[_R["departure_rad"]] = max(r[_R["departure_rad"]], float(np.linalg.norm(gap[:3])))
+
+
 class Shaper:
     """The shaping of a followed reference, one control period at a time (module docstring).
 
@@ -288,19 +319,21 @@ class Shaper:
     state): by the slices below, the pose and rate the shaped reference has at the next period
     when it is not on the followed one (rad, m; /s), the goal (the last admissible followed
     pose, or the farthest admissible towards it), and 1.0/0.0 flags: on the followed reference,
-    stopped short, joined it once; and the periods so far. :meth:`step` reads the followed
-    reference at the period and writes what the robot is given then.
+    stopped short, joined it once; the periods so far; and the counts of what was shaped
+    (:meth:`record_of` reads them: all that changes is in the state, none in the shaper).
+    :meth:`step` reads the followed reference at the period and writes what the robot is given
+    then.
 
     Args:
         limits: :class:`ShapingLimits`.
     Attributes:
-        record: the :class:`ShapingRecord` of the periods stepped.
         steps_per_check: the periods between two checks of the pose.
     """
 
     X, V, GOAL = slice(0, 6), slice(6, 12), slice(12, 18)
     ON_PATH, LIMITED, JOINED, COUNTER = slice(18, 19), slice(19, 20), slice(20, 21), slice(21, 22)
-    SIZE = 22
+    RECORD = slice(22, 22 + len(ShapingRecord.FIELDS))
+    SIZE = RECORD.stop
     #: The flags of a shaped period (:meth:`step`'s second value; 0: the followed reference).
     SHAPED_FLAG, LIMITED_FLAG, CLIPPED_FLAG, SCALED_FLAG, OVER_FLAG = 1, 2, 4, 8, 16
 
@@ -313,14 +346,18 @@ class Shaper:
         self._omega = 2 * np.pi * limits.filter.bandwidth_hz  # the approach's, teleop's
         self._omega_follow = limits.follow_omega()
         self._torque, self._speed = limits.effort_limits()
-        self.record = ShapingRecord(self.h)
 
     def initial_state(self, x_initial) -> np.ndarray:
         """(:data:`SIZE`,) the state of a reference at rest at ``x_initial`` (6,) [rad, m],
         its goal, not on a followed reference (it joins one within the rejoining tolerances)."""
         state = np.zeros(self.SIZE)
         state[self.X] = state[self.GOAL] = np.asarray(x_initial, dtype=float).reshape(6)
+        state[self.RECORD] = ShapingRecord.initial_values()
         return state
+
+    def record_of(self, state) -> ShapingRecord:
+        """The :class:`ShapingRecord` of the periods stepped from ``state`` (:data:`SIZE`,)."""
+        return ShapingRecord.from_values(self.h, np.asarray(state)[self.RECORD])
 
     def within(self, x, v, a) -> np.ndarray:
         """(n,) bool: the followed reference's samples (n, 6) each (pose, rate, acceleration)
@@ -391,7 +428,7 @@ class Shaper:
                     within = bool(self.within(x_f, v_f, a_f)[0])
                 if within:
                     self._pass(state, x_f, v_f, a_f)
-                    self.record.joined(t)
+                    _count_joined(state[self.RECORD], t)
                     return np.concatenate([x_f, v_f, a_f]), 0
         state[self.ON_PATH] = 0.0
         # Towards the followed reference, once joined, only the robot's limits bound it; the
@@ -401,7 +438,9 @@ class Shaper:
         what |= self.SHAPED_FLAG | (self.LIMITED_FLAG if state[self.LIMITED][0] > 0 else 0)
         state[self.X] = x + self.h * v + 0.5 * self.h**2 * a
         state[self.V] = v + self.h * a
-        self.record.add(t, what, None if followed is None else x - target_pose(followed))
+        _count_shaped(
+            state[self.RECORD], t, what, None if followed is None else x - target_pose(followed)
+        )
         return np.concatenate([x, v, a]), what
 
     def _pass(self, state, x_f, v_f, a_f) -> None:
@@ -421,7 +460,7 @@ class Shaper:
             state[self.GOAL] = goal
             state[self.LIMITED] = 0.0
         self._pass(state, *last)
-        self.record.joined(t, count)
+        _count_joined(state[self.RECORD], t, count)
 
     def _acceleration(self, x, v, target, boxed: bool) -> tuple:
         """(a (6,), flags): the filter's acceleration towards ``target`` from pose ``x`` and
@@ -554,7 +593,8 @@ def shape_followed(followed, limits: ShapingLimits, duration_s: float) -> Shaped
                 periods.append(int(k[j]))
                 values.append(out)
             j += 1
-    return ShapedReference(followed, h, periods, np.array(values).reshape(-1, 18), shaper.record)
+    record = shaper.record_of(state)
+    return ShapedReference(followed, h, periods, np.array(values).reshape(-1, 18), record)
 
 
 def _pass_stretch(shaper: Shaper, state, j: int, t, followed, fails, check) -> int:
