@@ -270,8 +270,8 @@ class FollowReference(LeafSystem):
         return self._held(t, slice(18, 24))
 
     def record(self, context):
-        """The :class:`~stewart_drake.run.shaping.ShapingRecord` of the periods shaped so far,
-        from this system's state in ``context`` (its own Context or the Diagram's)."""
+        """The :class:`~stewart_drake.run.shaping_record.ShapingRecord` of the periods shaped so
+        far, from this system's state in ``context`` (its own Context or the Diagram's)."""
         mine = self.GetMyContextFromRoot(context)
         return self.shaper.record_of(mine.get_discrete_state(self._state).get_value()[self.SHAPER])
 

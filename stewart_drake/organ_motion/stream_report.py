@@ -136,8 +136,8 @@ def stream_summary(figures: dict) -> list:
 
 
 def _shaping_words(record: dict) -> str:
-    """:meth:`~stewart_drake.run.shaping.ShapingRecord.words` of a record's plain numbers."""
-    from ..run.shaping import ShapingRecord
+    """:meth:`~stewart_drake.run.shaping_record.ShapingRecord.words` of a record's plain numbers."""
+    from ..run.shaping_record import ShapingRecord
 
     return ShapingRecord(**record).words()
 
@@ -161,9 +161,9 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
     rad and m, the 3-D RMS, ``window_s``, ``startup``); ``against_given_reference`` the robot
     against the reference it ran, over the same window, and ``after_warm_up``
     (:func:`~.streaming.after_warm_up`, or null), which are not the verdict; ``shaping`` what was
-    shaped (:meth:`~stewart_drake.run.shaping.ShapingRecord.as_dict`), ``shaped`` the reference
-    given against the motion streamed (:func:`~.streaming.stream_figures`), ``band`` the band's
-    coverage (:func:`~.streaming.band_figures`) and ``scale`` the true motion's.
+    shaped (:meth:`~stewart_drake.run.shaping_record.ShapingRecord.as_dict`), ``shaped`` the
+    reference given against the motion streamed (:func:`~.streaming.stream_figures`), ``band``
+    the band's coverage (:func:`~.streaming.band_figures`) and ``scale`` the true motion's.
 
     Returns:
         the three paths (.md, .png, .json), each written atomically.

@@ -230,18 +230,18 @@ def reproduce_stream(
     it again before the run.
 
     Returns:
-        :func:`follow_motion`'s dict (the followed reference against the motion streamed, with
-        and without prediction, over the whole run) with "given": the shaped reference the
-        robot ran (:class:`~stewart_drake.run.shaping.ShapedReference`), "shaped":
-        :func:`stream_figures` of it against the motion streamed, "shaping": its record
-        (:meth:`~stewart_drake.run.shaping.ShapingRecord.as_dict`), "band": :func:`band_figures`
-        of it, "scale": the true motion's scale (1.0: as it is), "robot": :func:`stream_figures`
-        of the robot's true pose against the true motion over the whole run, "reproduction":
-        the :class:`~.reproduction.Reproduction` of the shaped reference, "robot_tracking": its
-        own fidelity (the robot against what it was given), "judged": the same run measured
-        against the true motion over the same window (:func:`~.reproduction.measured_against`:
-        what :func:`~.stream_report.stream_verdict` judges), "truth": the true motion,
-        "prediction_from_s": :func:`prediction_start`.
+        :func:`follow_motion`'s dict (the followed reference against the motion streamed, with and
+        without prediction, over the whole run) with "given": the shaped reference the robot ran
+        (:class:`~stewart_drake.run.shaping.ShapedReference`), "shaped": :func:`stream_figures` of
+        it against the motion streamed, "shaping": its record
+        (:meth:`~stewart_drake.run.shaping_record.ShapingRecord.as_dict`), "band":
+        :func:`band_figures` of it, "scale": the true motion's scale (1.0: as it is), "robot":
+        :func:`stream_figures` of the robot's true pose against the true motion over the whole run,
+        "reproduction": the :class:`~.reproduction.Reproduction` of the shaped reference,
+        "robot_tracking": its own fidelity (the robot against what it was given), "judged": the same
+        run measured against the true motion over the same window
+        (:func:`~.reproduction.measured_against`: what :func:`~.stream_report.stream_verdict`
+        judges), "truth": the true motion, "prediction_from_s": :func:`prediction_start`.
     Raises:
         InvalidConfigError: a bad latency, an unknown predictor, a stream too short; and as
             :func:`~.reproduction.reproduce`.
