@@ -80,7 +80,7 @@ def main() -> None:
             slowest.append(worst)
         print(f"predictor {name}: {min(cpu) / n * 1e6:.0f} us CPU a sample, the slowest "
               f"sample {min(slowest) * 1e3:.2f} ms wall (control period 10 ms)")  # fmt: skip
-    for history in (0.5, 1.0, 2.0):
+    for history in (0.5, 1.0, 2.0, 4.0):
         settings = PredictorSettings(history_s=history)
         p = settings.lags(dt)
 
@@ -104,7 +104,8 @@ def main() -> None:
             cells.append(
                 f"{name} {cpu:.2f} s CPU ({cpu / n * 1e6:.0f} us/sample; {wall:.2f} s wall)"
             )
-        print(f"history {history:g} s ({p} lags): " + ", ".join(cells))
+        stride = settings.lag_stride(dt)
+        print(f"history {history:g} s ({p} lags, every {stride} sample(s)): " + ", ".join(cells))
     live = LiveFollower(args.latency, args.rate)
     c0, evaluations = time.process_time(), 0
     for i, (t, y) in enumerate(zip(stream.t, stream.poses)):

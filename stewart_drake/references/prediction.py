@@ -80,7 +80,8 @@ DEFAULT_PREDICTOR = "linear"
 #: The widening of the motion's recent range that a prediction may reach, a fraction of it.
 ENVELOPE_MARGIN = 0.1
 #: The most displacements the regression reads, whatever the stream's rate: it factorises a
-#: matrix of this size per axis at every sample (64: 2 s at 30 Hz; 0.64 s at 100 Hz).
+#: matrix of this size per axis at every sample (64: 2.56 s at 25 Hz one sample apart; a longer
+#: history, or a faster stream, reads every second sample or more).
 MAX_LAGS = 64
 #: The most samples in a row an axis may have taken as outliers; the next is taken as it is.
 MAX_REJECTED_RUN = 2
@@ -99,7 +100,8 @@ class PredictorSettings:
 
     Attributes:
         history_s: the past the linear regression reads, s (``round(history_s / dt)``
-            displacements, at least 2 and at most :data:`MAX_LAGS`).
+            displacements, at least 2; beyond :data:`MAX_LAGS`, every second sample or more:
+            :meth:`lag_stride`).
         memory_s: time constant of the forgetting of the regression's sums, s.
         ridge: the ridge, relative to the mean of the diagonal of the regression's sums.
         record_s: time constant of the residuals' record (the fallback and the uncertainty), s.
@@ -143,7 +145,7 @@ class PredictorSettings:
     # library's motions (memory 30-120 s within 0.005 of the mean ratio; a ridge of 1e-6 beat
     # 1e-3 by 0.05); the bound and the shrinkage "Choosing the predictor"'s. The other models'
     # settings were not tuned (one setting each, from their papers or ours).
-    history_s: float = 2.0
+    history_s: float = 4.0
     memory_s: float = 30.0
     ridge: float = 1e-6
     record_s: float = 10.0
@@ -208,15 +210,23 @@ class PredictorSettings:
                 f"predictor setting shrink must be True or False, got {self.shrink!r}"
             )
 
+    def lag_stride(self, dt: float) -> int:
+        """Samples between the displacements the regression reads at a sample step ``dt`` (s):
+        1 unless ``history_s`` holds more than :data:`MAX_LAGS` samples, then the fewest that
+        keep their count within it (a faster stream reads the same history, more coarsely)."""
+        return max(1, -(-int(round(self.history_s / dt)) // MAX_LAGS))
+
     def lags(self, dt: float) -> int:
-        """Displacements the regression reads at a sample step ``dt`` (s): at least 2, at most
-        :data:`MAX_LAGS` (a faster stream reads a shorter history)."""
-        return min(MAX_LAGS, max(2, int(round(self.history_s / dt))))
+        """Displacements the regression reads at a sample step ``dt`` (s): ``history_s`` in
+        steps of :meth:`lag_stride` samples, at least 2 and at most :data:`MAX_LAGS`."""
+        stride = self.lag_stride(dt)
+        return min(MAX_LAGS, max(2, int(round(self.history_s / (dt * stride)))))
 
     def samples_needed(self, dt: float, steps: int) -> int:
         """Samples a stream needs before the model can be used at all: its history, the
         steps ahead it predicts and ``min_record_s`` of residuals."""
-        return self.lags(dt) + steps + max(1, int(round(self.min_record_s / dt)))
+        history = self.lags(dt) * self.lag_stride(dt)
+        return history + steps + max(1, int(round(self.min_record_s / dt)))
 
 
 def check_predictor(name: str) -> str:
@@ -248,11 +258,13 @@ class HoldModel:
 class LinearModel:
     """Adaptive linear regression of each axis k = 1..K samples ahead (module docstring).
 
-    Features of sample i: x_i = [y_i - y_{i-1}, ..., y_i - y_{i-p}] per axis (the first sample
-    repeated before the stream's start); target of the pair for k: y_{j+k} - y_j, learned at
-    sample j + k. Sums R_k = sum lambda^(i-j) x_j x_j^T and r_k = sum lambda^(i-j) x_j (y_{j+k} -
-    y_j), lambda = exp(-dt / memory_s); weights w_k = (R_k + delta I)^-1 r_k with delta = ridge
-    x mean(diag R_k) (plus 1e-30: a motion at rest predicts no displacement).
+    Features of sample i: x_i = [y_i - y_{i-s}, y_i - y_{i-2s}, ..., y_i - y_{i-ps}] per axis, s
+    the stride (:meth:`PredictorSettings.lag_stride`, 1 unless the history holds more than
+    :data:`MAX_LAGS` samples; the first sample repeated before the stream's start); target of
+    the pair for k: y_{j+k} - y_j, learned at sample j + k. Sums R_k = sum lambda^(i-j) x_j
+    x_j^T and r_k = sum lambda^(i-j) x_j (y_{j+k} - y_j), lambda = exp(-dt / memory_s); weights
+    w_k = (R_k + delta I)^-1 r_k with delta = ridge x mean(diag R_k) (plus 1e-30: a motion at
+    rest predicts no displacement).
 
     Every step ahead reads the same features, so R_k at sample i is the sum S_n = sum_(j <= n)
     lambda^(n-j) x_j x_j^T of one recursion, k samples old (n = i - k): each sample adds one
@@ -267,10 +279,12 @@ class LinearModel:
 
     def __init__(self, dt: float, steps: int, axes: int, settings: PredictorSettings):
         self.p, self.K, self.m = settings.lags(dt), int(steps), int(axes)
-        self.warm = self.p + self.K  # its first pairs complete
+        self.stride = settings.lag_stride(dt)
+        self.warm = self.p * self.stride + self.K  # its first pairs complete
         self.lam = float(np.exp(-dt / settings.memory_s))
         self.ridge = float(settings.ridge)
-        self._y = np.zeros((self.p + self.K + 1, self.m))  # the newest samples, newest last
+        # The newest samples, newest last: the history read and the steps ahead learned.
+        self._y = np.zeros((self.p * self.stride + self.K + 1, self.m))
         self._x = np.zeros((self.K + 1, self.m, self.p))  # features of the newest K + 1
         self._S = np.zeros((self.m, self.p, self.p))  # S_n of the newest sample
         # F_n, (S_n + delta_n I)^-1 = F_n^T F_n (F_n lower triangular) per axis of the newest
@@ -294,7 +308,8 @@ class LinearModel:
         self._y[-1] = y
         i = self._n  # this sample's index
         self._n += 1
-        x = (y[None, :] - self._y[-2 : -2 - self.p : -1]).T  # (m, p): y_i - y_{i-l}
+        s = self.stride
+        x = (y[None, :] - self._y[-1 - s : -1 - s * (self.p + 1) : -s]).T  # (m, p): y_i - y_{i-ls}
         self._x[:-1] = self._x[1:]
         self._x[-1] = x
         # The pairs that have just completed: input k samples ago, outcome now.
