@@ -274,14 +274,12 @@ def verdicts(rows, fallback=()) -> list:
     return lines
 
 
-def tables(rows, sources, fallback=(), hurting=()) -> list:
-    """The Markdown of the selection (lines): the sources left out, every candidate on every
-    source, the motions not judged, and the fallback where prediction cannot pay."""
-    loso = leave_one_out(rows)
-    shipped = choose(rows)
+def _held_out_rows(rows, sources) -> list:
+    """The table's rows of each source left out: its motions and form, the candidate chosen on
+    the others, its figures on it and the verdict."""
     forms = {s.name: (s.form.words(), len(s.cases)) for s in sources}
     held = []
-    for source, chosen, f, checks in loso:
+    for source, chosen, f, checks in leave_one_out(rows):
         a, b = f[LATENCIES[0]], f[LATENCIES[1]]
         held.append([
             source,
@@ -295,6 +293,12 @@ def tables(rows, sources, fallback=(), hurting=()) -> list:
                 f"{w} {x:.2f} > {g:g}" for w, x, g, met in checks if not met
             ),
         ])  # fmt: skip
+    return held
+
+
+def _candidate_grid(rows) -> tuple[list, list]:
+    """(the sources' names, a row per candidate: its mean RMS ratio / largest peak ratio on
+    each source at the first latency, and its score on all)."""
     labels = list(dict.fromkeys(r["candidate"] for r in rows))
     names = list(dict.fromkeys(r["source"] for r in rows))
     grid = []
@@ -306,6 +310,15 @@ def tables(rows, sources, fallback=(), hurting=()) -> list:
             cells.append(f"{np.nanmean(rms):.2f} / {np.nanmax(peak):.2f}")
         mean, peak = score(rows, c)
         grid.append([c, *cells, f"{mean:.3f} / {peak:.2f}"])
+    return names, grid
+
+
+def tables(rows, sources, fallback=(), hurting=()) -> list:
+    """The Markdown of the selection (lines): the sources left out, every candidate on every
+    source, the motions not judged, and the fallback where prediction cannot pay."""
+    shipped = choose(rows)
+    held = _held_out_rows(rows, sources)
+    names, grid = _candidate_grid(rows)
     lat = [f"{x:g} s" for x in LATENCIES]
     unjudged = list(
         dict.fromkeys((r["source"], r["case"], r["latency_s"]) for r in rows if not r["judged"])

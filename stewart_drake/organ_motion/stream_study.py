@@ -213,8 +213,9 @@ def verdicts(rows) -> list:
     return lines
 
 
-def tables(rows, settings: PredictorSettings) -> list:
-    """The Markdown of the study (lines)."""
+def _summary_rows(rows) -> list:
+    """The table's rows of each set (IntERAct's traces, the library's motions): ratios (a) and
+    (b) at each latency, and how often the predictor was used."""
     summary = []
     for tuned, what in ((False, "IntERAct"), (True, "library")):
         sets = [f for f in (_set_figures(rows, tuned, lat) for lat in LATENCIES) if f is not None]
@@ -228,26 +229,26 @@ def tables(rows, settings: PredictorSettings) -> list:
             ["", "predictor used / fell back"]
             + [f"{f['used']} / {f['n'] - f['used']}" for f in sets],
         ]
-    per_case = [
-        [c.label, "library" if c.tuned_on else "IntERAct", f"{f[LATENCIES[0]]['rate_hz']:.3g}"]
-        + [
-            "{:.2f} / {:.2f} / {:.2f}".format(*ratios(f[lat]), peak_ratio(f[lat]))
-            for lat in LATENCIES
-        ]
-        for c, f in rows
-    ]
-    detail_header = [
-        "motion",
-        "(a) held / predicted [mm]",
-        "(a) model alone [mm]",
-        "(a) nRMSE held / predicted",
-        "(b) none / predicted: RMS [mm]",
-        "(b) peak [mm]",
-        "(b) nRMSE",
-        "(b) within 1 mm, 0.01 rad [%]",
-        "(b) rotation ratio",
-        "prediction used [%]",
-    ]
+    return summary
+
+
+#: The detail table's columns, at :data:`GOAL_LATENCY_S`.
+_DETAIL_HEADER = (
+    "motion",
+    "(a) held / predicted [mm]",
+    "(a) model alone [mm]",
+    "(a) nRMSE held / predicted",
+    "(b) none / predicted: RMS [mm]",
+    "(b) peak [mm]",
+    "(b) nRMSE",
+    "(b) within 1 mm, 0.01 rad [%]",
+    "(b) rotation ratio",
+    "prediction used [%]",
+)
+
+
+def _detail_rows(rows) -> list:
+    """A row per motion at :data:`GOAL_LATENCY_S` (the columns of _DETAIL_HEADER)."""
     detail = []
     for c, f in rows:
         r = f[GOAL_LATENCY_S]
@@ -264,6 +265,19 @@ def tables(rows, settings: PredictorSettings) -> list:
             f"{r['ratio_rotation']:.2f}",
             f"{r['used'] * 100:.0f}",
         ])  # fmt: skip
+    return detail
+
+
+def tables(rows, settings: PredictorSettings) -> list:
+    """The Markdown of the study (lines)."""
+    per_case = [
+        [c.label, "library" if c.tuned_on else "IntERAct", f"{f[LATENCIES[0]]['rate_hz']:.3g}"]
+        + [
+            "{:.2f} / {:.2f} / {:.2f}".format(*ratios(f[lat]), peak_ratio(f[lat]))
+            for lat in LATENCIES
+        ]
+        for c, f in rows
+    ]
     lat_cols = [f"{lat:g} s" for lat in LATENCIES]
     return [
         "### Following a motion streamed late: error with prediction over error without",
@@ -285,7 +299,7 @@ def tables(rows, settings: PredictorSettings) -> list:
         f"{USED_SHARE * 100:.0f} % of the arrivals (on the axes that move), else it fell back "
         "to no prediction.",
         "",
-        *markdown_lines(["set", "ratio"] + lat_cols, summary),
+        *markdown_lines(["set", "ratio"] + lat_cols, _summary_rows(rows)),
         "",
         "Verdicts (computed from the table; the acceptance is judged on (b), end to end):",
         "",
@@ -303,7 +317,7 @@ def tables(rows, settings: PredictorSettings) -> list:
         "true translation about its mean. (b) over the whole run, every 10 ms: without and "
         "with prediction.",
         "",
-        *markdown_lines(detail_header, detail),
+        *markdown_lines(list(_DETAIL_HEADER), _detail_rows(rows)),
     ]
 
 
