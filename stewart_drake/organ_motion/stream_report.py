@@ -148,27 +148,11 @@ def _streamed(figures: dict) -> str:
     return "true motion" if scale == 1.0 else f"true motion scaled by {scale:.3f}"
 
 
-def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, float]) -> tuple:
-    """``reproduce_<name>_stream.md``, ``.png`` and ``.json`` in ``out``: the verdict of
-    :func:`stream_verdict` at ``tolerance`` (m, rad; the robot's true pose against the true
-    motion) with what is beside it, the summary, the figures, and the true motion, the followed
-    reference with and without prediction, the reference given (shaped) and the robot on the
-    axis that moves most, with the errors over time and the band of the realised errors
-    (:func:`~.streaming.error_band`: :data:`~.streaming.BAND_QUANTILE` of those of the last
-    :data:`~.streaming.BAND_WINDOW_S` s).
-
-    The JSON's ``passed`` is that verdict; ``against_true_motion`` its figures (``rms`` per axis,
-    rad and m, the 3-D RMS, ``window_s``, ``startup``); ``against_given_reference`` the robot
-    against the reference it ran, over the same window, and ``after_warm_up``
-    (:func:`~.streaming.after_warm_up`, or null), which are not the verdict; ``shaping`` what was
-    shaped (:meth:`~stewart_drake.run.shaping_record.ShapingRecord.as_dict`), ``shaped`` the
-    reference given against the motion streamed (:func:`~.streaming.stream_figures`), ``band``
-    the band's coverage (:func:`~.streaming.band_figures`) and ``scale`` the true motion's.
-
-    Returns:
-        the three paths (.md, .png, .json), each written atomically.
-    """
-    import json
+def _plot_stream(figures: dict, name: str, tolerance: tuple[float, float], png: Path) -> tuple:
+    """Draw :func:`write_stream_report`'s figure into ``png`` (written atomically): the true
+    motion, the followed references and the robot on the axis that moves most over the last
+    20 s, with the errors and the band; titled with the verdict. Returns
+    :func:`stream_verdict`'s (passed, lines)."""
     import textwrap
 
     import matplotlib
@@ -178,9 +162,6 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
 
     from ..base.fileio import atomic_write
 
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = out / f"reproduce_{name}_stream"
     followed, truth = figures["followed"], figures["truth"]
     rep = figures.get("reproduction")
     end = followed.end_time
@@ -232,20 +213,18 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
     a1.set_xlabel("t [s]")
     a1.legend(loc="upper right", fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.94))  # below the verdict's title
-    png = stem.parent / f"{stem.name}.png"  # a name may hold a dot: not with_suffix
     atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
     plt.close(fig)
-    md_text = "\n".join(
-        [f"# {name} followed as it arrives", "", f"**{lines[0]}**", "",
-         *[f"{line[0].upper()}{line[1:]}.\n" for line in lines[1:]],
-         *[f"- {line}" for line in stream_summary(figures)], "",
-         f"![the true motion and the followed reference]({png.name})", ""]
-    )  # fmt: skip
+    return ok, lines
+
+
+def _stream_json(figures: dict, passed: bool, verdict: str, tolerance: tuple) -> dict:
+    """The JSON :func:`write_stream_report` writes (its docstring)."""
     judged, rep = figures["judged"], figures["reproduction"]
     keep = {k: v for k, v in figures.items() if k in ("with", "without", "robot", "horizon")}
     keep.update(
-        passed=ok,
-        verdict=lines[0],
+        passed=passed,
+        verdict=verdict,
         tolerance=list(tolerance),
         against_true_motion=_judged_figures(judged),
         against_given_reference=_judged_figures(rep) | {"not_the_verdict": True},
@@ -274,6 +253,45 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
         ratio_rotation=figures["ratio_rotation"],
         loop_lag_s=LOOP_LAG_S,
     )
+    return keep
+
+
+def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, float]) -> tuple:
+    """``reproduce_<name>_stream.md``, ``.png`` and ``.json`` in ``out``: the verdict of
+    :func:`stream_verdict` at ``tolerance`` (m, rad; the robot's true pose against the true
+    motion) with what is beside it, the summary, the figures, and the true motion, the followed
+    reference with and without prediction, the reference given (shaped) and the robot on the
+    axis that moves most, with the errors over time and the band of the realised errors
+    (:func:`~.streaming.error_band`: :data:`~.streaming.BAND_QUANTILE` of those of the last
+    :data:`~.streaming.BAND_WINDOW_S` s).
+
+    The JSON's ``passed`` is that verdict; ``against_true_motion`` its figures (``rms`` per axis,
+    rad and m, the 3-D RMS, ``window_s``, ``startup``); ``against_given_reference`` the robot
+    against the reference it ran, over the same window, and ``after_warm_up``
+    (:func:`~.streaming.after_warm_up`, or null), which are not the verdict; ``shaping`` what was
+    shaped (:meth:`~stewart_drake.run.shaping_record.ShapingRecord.as_dict`), ``shaped`` the
+    reference given against the motion streamed (:func:`~.streaming.stream_figures`), ``band``
+    the band's coverage (:func:`~.streaming.band_figures`) and ``scale`` the true motion's.
+
+    Returns:
+        the three paths (.md, .png, .json), each written atomically.
+    """
+    import json
+
+    from ..base.fileio import atomic_write
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = out / f"reproduce_{name}_stream"
+    png = stem.parent / f"{stem.name}.png"  # a name may hold a dot: not with_suffix
+    ok, lines = _plot_stream(figures, name, tolerance, png)
+    md_text = "\n".join(
+        [f"# {name} followed as it arrives", "", f"**{lines[0]}**", "",
+         *[f"{line[0].upper()}{line[1:]}.\n" for line in lines[1:]],
+         *[f"- {line}" for line in stream_summary(figures)], "",
+         f"![the true motion and the followed reference]({png.name})", ""]
+    )  # fmt: skip
+    keep = _stream_json(figures, ok, lines[0], tolerance)
     md, js = (stem.parent / f"{stem.name}{suffix}" for suffix in (".md", ".json"))
     atomic_write(md, lambda f: f.write(md_text.encode()))
     atomic_write(js, lambda f: f.write(json.dumps(keep, indent=1, default=float).encode()))
