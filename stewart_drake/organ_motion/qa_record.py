@@ -284,67 +284,46 @@ def _reportlab():
 _VERDICT_COLOURS = dict(zip(LEVELS, ("#1a7f37", "#b35900", "#5a5a5a", "#c62828")))
 
 
-def record_pdf(path: Path, data: dict, figure: Path) -> None:
-    """The record's PDF (A4): page 1 the verdict, the per-axis table, the causes, the
-    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
-    verification's plots."""
-    from xml.sax.saxutils import escape
+class _Flowables:
+    """The record's reportlab styles, and its paragraphs and tables made with them."""
 
-    from reportlab.lib import colors
-    from reportlab.lib.pagesizes import A4
-    from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
-    from reportlab.lib.units import mm
-    from reportlab.platypus import (
-        Image,
-        PageBreak,
-        Paragraph,
-        SimpleDocTemplate,
-        Spacer,
-        Table,
-        TableStyle,
-    )
+    def __init__(self):
+        from reportlab.lib import colors
+        from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
 
-    styles = getSampleStyleSheet()
-    body = ParagraphStyle("body", parent=styles["BodyText"], fontSize=9, leading=11.5)
-    small = ParagraphStyle("small", parent=body, fontSize=7.5, leading=9.5)
-    head = styles["Heading3"]
-    verdict = data["verdict"]
-    big = ParagraphStyle(
-        "verdict",
-        parent=styles["Title"],
-        textColor=colors.HexColor(_VERDICT_COLOURS[verdict]),
-        fontSize=26,
-        leading=30,
-    )
+        self.colors = colors
+        self.styles = getSampleStyleSheet()
+        self.body = ParagraphStyle("body", parent=self.styles["BodyText"], fontSize=9, leading=11.5)
+        self.small = ParagraphStyle("small", parent=self.body, fontSize=7.5, leading=9.5)
+        self.head = self.styles["Heading3"]
 
-    def p(text, style=body):
-        return Paragraph(escape(str(text)), style)
+    def p(self, text, style=None):
+        """A paragraph of ``text``, escaped (a file's name is text, not markup)."""
+        from xml.sax.saxutils import escape
 
-    def table(rows, widths, header=True):
+        from reportlab.platypus import Paragraph
+
+        return Paragraph(escape(str(text)), style or self.body)
+
+    def table(self, rows, widths, header=True):
+        """A gridded table, its first row shaded when it is a ``header``."""
+        from reportlab.platypus import Table, TableStyle
+
         t = Table(rows, colWidths=widths, hAlign="LEFT")
         style = [
             ("FONTSIZE", (0, 0), (-1, -1), 8.5),
             ("VALIGN", (0, 0), (-1, -1), "TOP"),
-            ("GRID", (0, 0), (-1, -1), 0.4, colors.grey),
+            ("GRID", (0, 0), (-1, -1), 0.4, self.colors.grey),
         ]
         if header:
-            style.append(("BACKGROUND", (0, 0), (-1, 0), colors.HexColor("#e8e8e8")))
+            style.append(("BACKGROUND", (0, 0), (-1, 0), self.colors.HexColor("#e8e8e8")))
         t.setStyle(TableStyle(style))
         return t
 
-    tol = f"{data['tolerance_mm']:g} mm | {data['tolerance_deg']:g} deg RMS per axis"
-    action = (
-        "none given"
-        if data["action_mm"] is None
-        else f"{data['action_mm']:g} mm | {data['action_deg']:g} deg RMS per axis"
-    )
-    story = [
-        p("Motion phantom QA record", styles["Title"]),
-        p(f"{data['reference']} measured in {data['measured_file']}", styles["Heading2"]),
-        p(verdict, big),
-        p(f"Tolerance {tol}; action level {action}."),
-        Spacer(1, 3 * mm),
-    ]
+
+def _axis_rows(data: dict) -> list:
+    """The per-axis table of the record: a header, then each axis judged (RMS and peak error,
+    tolerance, action level, its level)."""
     rows = [["axis", "RMS error", "peak error", "tolerance", "action level", "level"]]
     for k, axis in enumerate(AXES):
         name = axis.lower()
@@ -366,25 +345,91 @@ def record_pdf(path: Path, data: dict, figure: Path) -> None:
                 data[f"level_{name}"],
             ]
         )
-    story.append(table(rows, [18 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm]))
-    story.append(Spacer(1, 3 * mm))
+    return rows
+
+
+def _latency_and_gamma(data: dict) -> str:
+    """The record's line on the latency (judged or not) and the gamma pass rate."""
+    from .verification import seconds
+
     gamma = (
         "not computed (no translation measured)"
         if data["gamma_pass_rate_pct"] is None
         else f"{data['gamma_pass_rate_pct']:.4g} % at {data['gamma_criteria']}"
     )
-    from .verification import seconds
-
     latency = seconds(data["latency_ms"] * 1e-3) + (
         f", judged against {seconds(data['max_latency_ms'] * 1e-3)}"
         if data["latency_judged"]
         else ", not judged (the clocks' relation not given)"
     )
-    story.append(p(f"Latency {latency}. Gamma pass rate {gamma}."))
+    return f"Latency {latency}. Gamma pass rate {gamma}."
+
+
+def _signature_table(f: _Flowables):
+    """The lines to sign: performed by, reviewed by, each with its signature and date."""
+    from reportlab.lib.units import mm
+    from reportlab.platypus import Table, TableStyle
+
+    grey = f.colors.HexColor("#e8e8e8")
+    return Table(
+        [
+            ["Performed by", "Signature", "Date"],
+            ["", "", ""],
+            ["Reviewed by", "Signature", "Date"],
+            ["", "", ""],
+        ],
+        colWidths=[60 * mm, 60 * mm, 50 * mm],
+        rowHeights=[6 * mm, 14 * mm, 6 * mm, 14 * mm],
+        hAlign="LEFT",
+        style=TableStyle(
+            [
+                ("FONTSIZE", (0, 0), (-1, -1), 8.5),
+                ("GRID", (0, 0), (-1, -1), 0.4, f.colors.grey),
+                ("BACKGROUND", (0, 0), (-1, 0), grey),
+                ("BACKGROUND", (0, 2), (-1, 2), grey),
+            ]
+        ),
+    )
+
+
+def _record_story(data: dict, figure, f: _Flowables) -> list:
+    """The record's flowables: page 1 the verdict, the per-axis table, the causes, the
+    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
+    verification's plots (when ``figure`` exists)."""
+    from reportlab.lib.styles import ParagraphStyle
+    from reportlab.lib.units import mm
+    from reportlab.platypus import Image, PageBreak, Spacer
+
+    p, small, head, styles = f.p, f.small, f.head, f.styles
+    verdict = data["verdict"]
+    big = ParagraphStyle(
+        "verdict",
+        parent=styles["Title"],
+        textColor=f.colors.HexColor(_VERDICT_COLOURS[verdict]),
+        fontSize=26,
+        leading=30,
+    )
+    tol = f"{data['tolerance_mm']:g} mm | {data['tolerance_deg']:g} deg RMS per axis"
+    action = (
+        "none given"
+        if data["action_mm"] is None
+        else f"{data['action_mm']:g} mm | {data['action_deg']:g} deg RMS per axis"
+    )
+    story = [
+        p("Motion phantom QA record", styles["Title"]),
+        p(f"{data['reference']} measured in {data['measured_file']}", styles["Heading2"]),
+        p(verdict, big),
+        p(f"Tolerance {tol}; action level {action}."),
+        Spacer(1, 3 * mm),
+        f.table(_axis_rows(data), [18 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm]),
+        Spacer(1, 3 * mm),
+        p(_latency_and_gamma(data)),
+    ]
     if data["causes"]:
         story += [p("Why it fails", head), *(p(f"- {c}") for c in data["causes"])]
     if data["cannot_judge"]:
         story += [p("Why it cannot judge", head), p(data["cannot_judge"])]
+    software = ", ".join(f"{k} {v}" for k, v in data["software"].items())
     story += [
         p("Verdict", head),
         p(data["line"], small),
@@ -395,7 +440,7 @@ def record_pdf(path: Path, data: dict, figure: Path) -> None:
             f"{data['window_s'][0]:.4g} to {data['window_s'][1]:.4g} s of the reference."
         ),
         p("Inputs", head),
-        table(
+        f.table(
             [["file", "bytes", "SHA-256"]]
             + [
                 [p(i["name"], small), str(i["bytes"]), p(i["sha256"], small)]
@@ -404,41 +449,20 @@ def record_pdf(path: Path, data: dict, figure: Path) -> None:
             [50 * mm, 20 * mm, 100 * mm],
         ),
         p("Phantom, operator, software", head),
-        table(
+        f.table(
             [
                 ["phantom (scenario)", p(data["scenario"] or "-", small)],
                 ["serial", p(data["phantom_serial"] or "-", small)],
                 ["operator", p(data["operator"] or "-", small)],
                 ["date", data["date"]],
                 ["notes", p(data["notes"] or "-", small)],
-                [
-                    "software",
-                    p(", ".join(f"{k} {v}" for k, v in data["software"].items()), small),
-                ],
+                ["software", p(software, small)],
             ],
             [40 * mm, 130 * mm],
             header=False,
         ),
         Spacer(1, 10 * mm),
-        Table(
-            [
-                ["Performed by", "Signature", "Date"],
-                ["", "", ""],
-                ["Reviewed by", "Signature", "Date"],
-                ["", "", ""],
-            ],
-            colWidths=[60 * mm, 60 * mm, 50 * mm],
-            rowHeights=[6 * mm, 14 * mm, 6 * mm, 14 * mm],
-            hAlign="LEFT",
-            style=TableStyle(
-                [
-                    ("FONTSIZE", (0, 0), (-1, -1), 8.5),
-                    ("GRID", (0, 0), (-1, -1), 0.4, colors.grey),
-                    ("BACKGROUND", (0, 0), (-1, 0), colors.HexColor("#e8e8e8")),
-                    ("BACKGROUND", (0, 2), (-1, 2), colors.HexColor("#e8e8e8")),
-                ]
-            ),
-        ),
+        _signature_table(f),
     ]
     if figure is not None and Path(figure).exists():
         from PIL import Image as PILImage
@@ -451,6 +475,18 @@ def record_pdf(path: Path, data: dict, figure: Path) -> None:
             p("The verification's plots", styles["Heading2"]),
             Image(str(figure), width=width, height=width * h / w),
         ]
+    return story
+
+
+def record_pdf(path: Path, data: dict, figure: Path) -> None:
+    """The record's PDF (A4): page 1 the verdict, the per-axis table, the causes, the
+    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
+    verification's plots."""
+    from reportlab.lib.pagesizes import A4
+    from reportlab.lib.units import mm
+    from reportlab.platypus import SimpleDocTemplate
+
+    story = _record_story(data, figure, _Flowables())
 
     def footer(canvas, doc):
         canvas.saveState()
@@ -458,8 +494,8 @@ def record_pdf(path: Path, data: dict, figure: Path) -> None:
         canvas.drawString(
             15 * mm,
             8 * mm,
-            f"{data['reference']} / {data['measured_file']} / {data['date']} / {verdict} / "
-            f"page {doc.page}",
+            f"{data['reference']} / {data['measured_file']} / {data['date']} / "
+            f"{data['verdict']} / page {doc.page}",
         )
         canvas.restoreState()
 
