@@ -34,6 +34,18 @@ def add_verify_command(sub) -> None:
     )
     add_motion_arguments(vp)
     add_trace_arguments(vp)
+    _add_measured_arguments(vp)
+    _add_frame_arguments(vp)
+    _add_record_arguments(vp)
+    add_scenario_arguments(
+        vp, "the robot whose encoder log is read (forward kinematics)", default=SCENARIO
+    )
+    vp.add_argument("--out", default="results/verify", help="report folder")
+    vp.set_defaults(func=cmd_verify)
+
+
+def _add_measured_arguments(vp) -> None:
+    """``verify``'s options of the measured file: which, its columns and axes, its clock."""
     vp.add_argument(
         "--measured",
         action="append",
@@ -86,6 +98,10 @@ def add_verify_command(sub) -> None:
         "judged at their own times, nothing interpolated; a longer gap (the tracker lost the "
         "marker) is refused where it is",
     )
+
+
+def _add_frame_arguments(vp) -> None:
+    """``verify``'s options of the frame the measured poses are judged in, and the tolerance."""
     vp.add_argument(
         "--registration",
         default=None,
@@ -115,6 +131,10 @@ def add_verify_command(sub) -> None:
         default="0.1mm,0.1deg",
         help="RMS error allowed per measured axis, a length and an angle",
     )
+
+
+def _add_record_arguments(vp) -> None:
+    """``verify``'s options of the QA record (``--record`` and what it writes in it)."""
     vp.add_argument(
         "--record",
         action="store_true",
@@ -134,11 +154,6 @@ def add_verify_command(sub) -> None:
     vp.add_argument("--operator", default="", help="with --record: who ran the QA")
     vp.add_argument("--phantom-serial", default="", help="with --record: the phantom's serial")
     vp.add_argument("--notes", default="", help="with --record: notes for the record")
-    add_scenario_arguments(
-        vp, "the robot whose encoder log is read (forward kinematics)", default=SCENARIO
-    )
-    vp.add_argument("--out", default="results/verify", help="report folder")
-    vp.set_defaults(func=cmd_verify)
 
 
 def _check_frame(text: str) -> None:
