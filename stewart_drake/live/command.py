@@ -136,6 +136,19 @@ def _add_robot_command(sub) -> None:
     from ..run.scenario_io import ROBOT_SCENARIO
 
     add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)", ROBOT_SCENARIO)
+    _add_session_arguments(rob)
+    _add_drive_arguments(rob)
+    from .follow_command import add_follow_arguments
+
+    add_follow_arguments(rob)
+    rob.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rob.add_argument("--out", default="results", help="folder of the logs")
+    rob.set_defaults(func=_cmd_robot, out_sub=("diverged",))
+
+
+def _add_session_arguments(rob) -> None:
+    """``robot``'s options of the session: the port, a dry run or a calibration, the homing,
+    the hold, the duration and our watchdog."""
     rob.add_argument(
         "--port", default=None, help="the servos' serial port (default: the scenario's bus.port)"
     )
@@ -177,6 +190,11 @@ def _add_robot_command(sub) -> None:
         default=0.1,
         help="our watchdog: the torque goes off when no control period completes for this long, s",
     )
+
+
+def _add_drive_arguments(rob) -> None:
+    """``robot``'s options of what drives it and on what: the emulator, real-time scheduling,
+    the surrogate's stage, Meshcat and teleoperation."""
     rob.add_argument(
         "--emulate",
         type=_pose6,
@@ -211,12 +229,6 @@ def _add_robot_command(sub) -> None:
         help="drive the robot from Meshcat's sliders, from where it rests (until Ctrl-C, or "
         "--duration s)",
     )
-    from .follow_command import add_follow_arguments
-
-    add_follow_arguments(rob)
-    rob.add_argument("--no-progress", action="store_true", help="no progress bar")
-    rob.add_argument("--out", default="results", help="folder of the logs")
-    rob.set_defaults(func=_cmd_robot, out_sub=("diverged",))
 
 
 def _pose6(text: str) -> list[float]:
