@@ -392,45 +392,14 @@ def _signature_table(f: _Flowables):
     )
 
 
-def _record_story(data: dict, figure, f: _Flowables) -> list:
-    """The record's flowables: page 1 the verdict, the per-axis table, the causes, the
-    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
-    verification's plots (when ``figure`` exists)."""
-    from reportlab.lib.styles import ParagraphStyle
+def _assumptions_and_inputs(data: dict, f: _Flowables) -> list:
+    """The record's verdict line, its assumptions (frames, clock, window), its inputs with their
+    SHA-256 and the phantom, operator and software."""
     from reportlab.lib.units import mm
-    from reportlab.platypus import Image, PageBreak, Spacer
 
-    p, small, head, styles = f.p, f.small, f.head, f.styles
-    verdict = data["verdict"]
-    big = ParagraphStyle(
-        "verdict",
-        parent=styles["Title"],
-        textColor=f.colors.HexColor(_VERDICT_COLOURS[verdict]),
-        fontSize=26,
-        leading=30,
-    )
-    tol = f"{data['tolerance_mm']:g} mm | {data['tolerance_deg']:g} deg RMS per axis"
-    action = (
-        "none given"
-        if data["action_mm"] is None
-        else f"{data['action_mm']:g} mm | {data['action_deg']:g} deg RMS per axis"
-    )
-    story = [
-        p("Motion phantom QA record", styles["Title"]),
-        p(f"{data['reference']} measured in {data['measured_file']}", styles["Heading2"]),
-        p(verdict, big),
-        p(f"Tolerance {tol}; action level {action}."),
-        Spacer(1, 3 * mm),
-        f.table(_axis_rows(data), [18 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm]),
-        Spacer(1, 3 * mm),
-        p(_latency_and_gamma(data)),
-    ]
-    if data["causes"]:
-        story += [p("Why it fails", head), *(p(f"- {c}") for c in data["causes"])]
-    if data["cannot_judge"]:
-        story += [p("Why it cannot judge", head), p(data["cannot_judge"])]
+    p, small, head = f.p, f.small, f.head
     software = ", ".join(f"{k} {v}" for k, v in data["software"].items())
-    story += [
+    return [
         p("Verdict", head),
         p(data["line"], small),
         p("Assumptions", head),
@@ -461,9 +430,47 @@ def _record_story(data: dict, figure, f: _Flowables) -> list:
             [40 * mm, 130 * mm],
             header=False,
         ),
-        Spacer(1, 10 * mm),
-        _signature_table(f),
     ]
+
+
+def _record_story(data: dict, figure, f: _Flowables) -> list:
+    """The record's flowables: page 1 the verdict, the per-axis table, the causes, the
+    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
+    verification's plots (when ``figure`` exists)."""
+    from reportlab.lib.styles import ParagraphStyle
+    from reportlab.lib.units import mm
+    from reportlab.platypus import Image, PageBreak, Spacer
+
+    p, head, styles = f.p, f.head, f.styles
+    verdict = data["verdict"]
+    big = ParagraphStyle(
+        "verdict",
+        parent=styles["Title"],
+        textColor=f.colors.HexColor(_VERDICT_COLOURS[verdict]),
+        fontSize=26,
+        leading=30,
+    )
+    tol = f"{data['tolerance_mm']:g} mm | {data['tolerance_deg']:g} deg RMS per axis"
+    action = (
+        "none given"
+        if data["action_mm"] is None
+        else f"{data['action_mm']:g} mm | {data['action_deg']:g} deg RMS per axis"
+    )
+    story = [
+        p("Motion phantom QA record", styles["Title"]),
+        p(f"{data['reference']} measured in {data['measured_file']}", styles["Heading2"]),
+        p(verdict, big),
+        p(f"Tolerance {tol}; action level {action}."),
+        Spacer(1, 3 * mm),
+        f.table(_axis_rows(data), [18 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm]),
+        Spacer(1, 3 * mm),
+        p(_latency_and_gamma(data)),
+    ]
+    if data["causes"]:
+        story += [p("Why it fails", head), *(p(f"- {c}") for c in data["causes"])]
+    if data["cannot_judge"]:
+        story += [p("Why it cannot judge", head), p(data["cannot_judge"])]
+    story += [*_assumptions_and_inputs(data, f), Spacer(1, 10 * mm), _signature_table(f)]
     if figure is not None and Path(figure).exists():
         from PIL import Image as PILImage
 
