@@ -151,26 +151,7 @@ class DynamixelBus:
         self._specs = {i: self.spec for i in ids}
         self._settings_of = {i: self.settings for i in ids}
         if surrogate is not None:
-            surrogate.validate(ids, None, prefix="surrogate.")
-            s_spec = servo_spec(surrogate.model)
-            if s_spec.table != table:
-                raise InvalidConfigError(
-                    f"surrogate.stage.motor {s_spec.name} keeps its items at other addresses "
-                    f"than the cranks' {self.spec.name}: one sync read and write serve every "
-                    f"servo of the bus; give the stage a servo of the {table.family} series"
-                )
-            s_units = s_spec.current_limit_max
-            if surrogate.current_limit_A is not None:
-                s_units = min(s_units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
-            self.surrogate_spec, self.surrogate_limit_units = s_spec, int(s_units)
-            self.all_ids.append(int(surrogate.id))
-            self._specs[int(surrogate.id)] = s_spec
-            self._settings_of[int(surrogate.id)] = self.settings | {
-                "Current Limit": (table.current_limit, self.surrogate_limit_units),
-                # Multi-turn in Current Control Mode: the limits do not apply; the factory's.
-                "Min Position Limit": (table.min_position_limit, s_spec.position_range[0]),
-                "Max Position Limit": (table.max_position_limit, s_spec.position_range[1]),
-            }
+            self._add_surrogate(surrogate)
         self.read_times: collections.deque = collections.deque(maxlen=timing_window)
         self.write_times: collections.deque = collections.deque(maxlen=timing_window)
         #: Whether the last :meth:`torque_off` was confirmed by every servo.
@@ -181,6 +162,36 @@ class DynamixelBus:
         self._sdk = dynamixel_sdk()
         self._port = None
         self._packets = self._sdk.PacketHandler(2.0)
+
+    def _add_surrogate(self, surrogate: SurrogateServoConfig) -> None:
+        """Put the surrogate's servo on the bus after the cranks': its model (one of the
+        cranks' series: one sync read and write serve every servo) and its settings, the
+        cranks' with its own Current Limit and its factory position range (multi-turn in
+        Current Control Mode: the limits do not apply).
+
+        Raises:
+            InvalidConfigError: a surrogate out of range, or a servo of another series.
+        """
+        table = self.table
+        surrogate.validate(self.ids, None, prefix="surrogate.")
+        s_spec = servo_spec(surrogate.model)
+        if s_spec.table != table:
+            raise InvalidConfigError(
+                f"surrogate.stage.motor {s_spec.name} keeps its items at other addresses "
+                f"than the cranks' {self.spec.name}: one sync read and write serve every "
+                f"servo of the bus; give the stage a servo of the {table.family} series"
+            )
+        s_units = s_spec.current_limit_max
+        if surrogate.current_limit_A is not None:
+            s_units = min(s_units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
+        self.surrogate_spec, self.surrogate_limit_units = s_spec, int(s_units)
+        self.all_ids.append(int(surrogate.id))
+        self._specs[int(surrogate.id)] = s_spec
+        self._settings_of[int(surrogate.id)] = self.settings | {
+            "Current Limit": (table.current_limit, self.surrogate_limit_units),
+            "Min Position Limit": (table.min_position_limit, s_spec.position_range[0]),
+            "Max Position Limit": (table.max_position_limit, s_spec.position_range[1]),
+        }
 
     @classmethod
     def from_config(cls, config: DynamixelBusConfig) -> DynamixelBus:
