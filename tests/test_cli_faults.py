@@ -1355,19 +1355,20 @@ _OUR_CTRL_C_LINE = (
 
 def _python_s_own(code: int, text: str) -> bool:
     """Whether a process ended as Python itself ends on SIGINT before any of the package's code
-    ran: killed before the interpreter set its handler (-2, nothing said), or a
-    KeyboardInterrupt whose traceback has no frame in the package (the interpreter's start-up,
-    site's .pth files, the console script's first lines, the import machinery finding the
-    package)."""
+    ran: killed before the interpreter set its handler (-2, nothing said), the interpreter's
+    own fatal error while it is still initialising its core (Python 3.13 interrupted inside
+    ``init_sys_streams``: "Fatal Python error", runtime state "core initialized", no frame of
+    the package's), or a KeyboardInterrupt whose traceback has no frame in the package (the
+    interpreter's start-up, site's .pth files, the console script's first lines, the import
+    machinery finding the package)."""
     package = str(Path(cli.__file__).resolve().parents[1]) + os.sep
     frames = re.findall(r'File "([^"]+)", line', text)
+    ours = any(str(Path(f).resolve()).startswith(package) for f in frames)
     if code == -signal.SIGINT and not text.strip():
         return True
-    return (
-        "KeyboardInterrupt" in text
-        and "interrupted by SIGINT" not in text
-        and not any(str(Path(f).resolve()).startswith(package) for f in frames)
-    )
+    if text.startswith("Fatal Python error: ") and "runtime state: core initialized" in text:
+        return not ours
+    return "KeyboardInterrupt" in text and "interrupted by SIGINT" not in text and not ours
 
 
 @pytest.mark.system

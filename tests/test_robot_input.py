@@ -28,7 +28,10 @@ from stewart_drake.live.session import RobotRun, _drive, end_line  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.result import load_result  # noqa: E402
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
-from stewart_drake.station.bus import driver  # noqa: E402
+from stewart_drake.station.bus import (
+    driver,  # noqa: E402
+    vendor_port,  # noqa: E402
+)
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
@@ -418,7 +421,7 @@ def test_the_robot_extra_is_checked_before_the_emulator_starts(capsys, monkeypat
             "the servo driver needs ROBOTIS's dynamixel-sdk: pip install 'stewart-drake[robot]'"
         )
 
-    monkeypatch.setattr(driver, "dynamixel_sdk", missing)
+    monkeypatch.setattr(vendor_port, "dynamixel_sdk", missing)
     monkeypatch.setattr(live_command, "_start_emulator", lambda *a: pytest.fail("emulator started"))
     assert main(["robot", "--emulate", "--dry-run"]) == 2
     err = capsys.readouterr().err
