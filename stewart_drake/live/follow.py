@@ -271,12 +271,14 @@ class FollowReference(LeafSystem):
 
     def record(self, context):
         """The :class:`~stewart_drake.run.shaping_record.ShapingRecord` of the periods shaped so
-        far, from this system's state in ``context`` (its own Context or the Diagram's)."""
+        far, from this system's state in ``context``: the root Context (the Diagram's when this
+        system is in one, else its own; a subcontext of a Diagram's is refused by Drake)."""
         mine = self.GetMyContextFromRoot(context)
         return self.shaper.record_of(mine.get_discrete_state(self._state).get_value()[self.SHAPER])
 
     def summary(self, context) -> str:
-        """One line: what was received, predicted and shaped (the shaping from ``context``)."""
+        """One line: what was received, predicted and shaped (the shaping from ``context``, the
+        root Context as :meth:`record`)."""
         f = self.follower
         used = f.used_samples / f.received * 100 if f.received else 0.0
         return (
