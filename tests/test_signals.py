@@ -1,5 +1,6 @@
-"""The principal direction of a motion, one definition (stewart_drake/base/signals.py): checked
-against directions written down by hand, not against the code's own SVD."""
+"""The principal direction of a motion and the parabolic peak, one definition each
+(stewart_drake/base/signals.py): checked against directions and vertices written down by hand,
+not against the code's own SVD or formula."""
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ import pytest
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.base.signals import (
     direction_words,
+    parabolic_peak,
     principal_direction,
     principal_displacement,
 )
@@ -101,3 +103,25 @@ def test_the_robots_verdict_and_the_diagrams_report_measure_one_lag_along_one_di
     assert robot.surrogate_lag_s == pytest.approx(0.008, abs=1e-4)
     assert robot.relative_s == pytest.approx(0.012, abs=2e-4)
     assert diagram["relative_latency_s"] == pytest.approx(robot.relative_s, abs=5e-4)
+
+
+@pytest.mark.parametrize("vertex", [-0.45, -0.2, 0.0, 0.13, 0.4])
+def test_the_parabolic_peak_is_the_vertex_of_the_parabola_through_three_samples(vertex):
+    # y = 7 - 3 (x - vertex)^2 sampled at -1, 0, 1: its vertex, whatever its height or width.
+    a, b, c = (7.0 - 3.0 * (x - vertex) ** 2 for x in (-1.0, 0.0, 1.0))
+    assert parabolic_peak(a, b, c) == pytest.approx(vertex, abs=1e-12)
+    assert parabolic_peak(a + 100.0, b + 100.0, c + 100.0) == pytest.approx(vertex, abs=1e-12)
+
+
+def test_the_parabolic_peak_of_a_sampled_gaussian_refines_toward_its_true_peak():
+    # A peak 0.3 samples right of the middle: the refinement lands nearer it than the sample.
+    a, b, c = np.exp(-0.5 * ((np.array([-1.0, 0.0, 1.0]) - 0.3) / 1.5) ** 2)
+    shift = parabolic_peak(a, b, c)
+    assert 0.2 < shift < 0.4
+
+
+@pytest.mark.parametrize(
+    "three", [(1.0, 1.0, 1.0), (2.0, 1.0, 2.0), (0.0, 1.0, 3.0), (np.nan, 1.0, 0.5)]
+)
+def test_no_parabolic_peak_where_the_three_make_no_maximum(three):
+    assert parabolic_peak(*three) == 0.0

@@ -8,6 +8,11 @@ singular value), signed so that its largest component is positive. A motion alon
 that axis; a motion along a diagonal has the diagonal, where the coordinate that moves most
 (peak to peak) would see only part of it. The lag of a motion and its relative latency are
 measured along it (:func:`principal_displacement`, :func:`~.lag.signal_lag`).
+
+**The parabolic refinement** of a sampled peak (:func:`parabolic_peak`): the vertex of the
+parabola through the largest sample and its two neighbours, between samples. Every sampled peak
+the package places finer than its step goes through it: a lag's cross-correlation, a period's
+autocorrelation or spectrum.
 """
 
 from __future__ import annotations
@@ -63,6 +68,18 @@ def principal_displacement(x) -> tuple[np.ndarray, np.ndarray]:
     return (p - p.mean(axis=0)) @ u, u
 
 
+def parabolic_peak(a: float, b: float, c: float) -> float:
+    """The vertex of the parabola through (-1, ``a``), (0, ``b``), (1, ``c``), in samples
+    from the middle one: 0.5 (a - c) / (a - 2 b + c), within (-0.5, 0.5) when ``b`` is the
+    largest of the three; 0 where the three make no maximum (a - 2 b + c >= 0: flat or a
+    valley) or are not finite."""
+    curvature = a - 2.0 * b + c
+    if not curvature < 0:  # NaN too
+        return 0.0
+    shift = 0.5 * (a - c) / curvature
+    return float(shift) if np.isfinite(shift) else 0.0
+
+
 def direction_words(u) -> str:
     """``u`` (3,) in words: the axis's name ("X", "Y" or "Z", with "-" for its negative) when
     it is one to 1e-3, else its components, "(0.6, 0, 0.8)"."""
@@ -73,4 +90,4 @@ def direction_words(u) -> str:
     return "(" + ", ".join(f"{v:.3g}" for v in u) + ")"
 
 
-__all__ = ["principal_direction", "principal_displacement", "direction_words"]
+__all__ = ["principal_direction", "principal_displacement", "parabolic_peak", "direction_words"]

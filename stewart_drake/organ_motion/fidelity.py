@@ -18,6 +18,7 @@ import re
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.signals import parabolic_peak
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -142,11 +143,7 @@ def time_lag(
     energy = correlate(r2, np.ones(len(t) - 2 * L), mode="valid", method="direct")
     c = c / np.sqrt(np.maximum(energy, 1e-300))  # the reference's part that was summed
     k = int(np.argmax(c))
-    delta = 0.0
-    if 0 < k < len(c) - 1:
-        den = c[k - 1] - 2 * c[k] + c[k + 1]
-        if den < 0:
-            delta = 0.5 * (c[k - 1] - c[k + 1]) / den
+    delta = parabolic_peak(*c[k - 1 : k + 2]) if 0 < k < len(c) - 1 else 0.0
     return float((L - k - delta) * dt)
 
 

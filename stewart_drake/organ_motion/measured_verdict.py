@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..base.signals import parabolic_peak
 from .fidelity import AXES, format_angle, format_length, format_window
 from .verdict_sensitivity import (
     MAX_TURN_RAD,
@@ -154,8 +155,7 @@ def dominant_period(t, v) -> tuple[float, float]:
         return math.nan, 0.0
     share = float(np.sum(power[max(k - 16, 1) : k + 17]) / np.sum(power))
     if 0 < k < len(power) - 1:
-        a, b, c = np.log(power[k - 1 : k + 2] + 1e-300)
-        k = k + 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c < 0 else k
+        k = k + parabolic_peak(*np.log(power[k - 1 : k + 2] + 1e-300))
     return float(pad * dt / k), share
 
 

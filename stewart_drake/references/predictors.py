@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from ..base.signals import parabolic_peak
 from .trace_cleaning import noise_estimate
 
 #: The periods :func:`dominant_period` looks for, s: a heartbeat (0.5 s, 120 bpm) to a slow
@@ -200,10 +201,7 @@ def dominant_period(x: np.ndarray, dt: float, period_range_s=PERIOD_RANGE_S) -> 
     if not good.size:
         return float("nan")
     j = int(good[0])
-    a, b, c = seg[j - 1], seg[j], seg[j + 1]
-    curvature = a - 2 * b + c
-    shift = 0.5 * (a - c) / curvature if curvature < 0 else 0.0
-    return float((start + j + shift) * dt)
+    return float((start + j + parabolic_peak(*seg[j - 1 : j + 2])) * dt)
 
 
 class HarmonicKalmanModel:

@@ -24,7 +24,7 @@ import numpy as np
 
 from ...base.errors import InvalidConfigError
 from ...base.lag import signal_lag
-from ...base.signals import principal_direction
+from ...base.signals import parabolic_peak, principal_direction
 
 
 def _uniform(t: np.ndarray) -> float:
@@ -139,10 +139,7 @@ def _peak(lags: np.ndarray, rs: np.ndarray, h: float) -> float:
     """The lag of the largest of ``rs``, refined by a parabola through it and its neighbours."""
     n = int(np.argmax(rs))
     if 0 < n < len(rs) - 1:
-        a, b, c = rs[n - 1], rs[n], rs[n + 1]
-        den = a - 2 * b + c
-        if den < 0:
-            return float(lags[n] + 0.5 * h * (a - c) / den)
+        return float(lags[n] + h * parabolic_peak(*rs[n - 1 : n + 2]))
     return float(lags[n])
 
 
