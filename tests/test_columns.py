@@ -8,6 +8,7 @@ from stewart_drake.base.columns import (
     header_cell,
     interp_columns,
     read_csv_columns,
+    uniform_columns,
 )
 from stewart_drake.base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 
@@ -70,6 +71,25 @@ def _length_columns(path):
 def _read(path, text, **kw):
     path.write_text(text)
     return read_csv_columns(path, "log", 1e6, "write it again", _length_columns(path), **kw)
+
+
+def test_uniform_columns_resamples_on_the_steps_from_the_first_time_to_the_last():
+    # Times 0, 0.3, 1.0, 1.25 s; a line and a parabola: on a 0.1 s grid from 0 to 1.2 s, the
+    # line exactly and the parabola by its chords (each written out by hand).
+    t = np.array([0.0, 0.3, 1.0, 1.25])
+    Y = np.column_stack([2.0 * t + 1.0, t**2])
+    grid, Yg = uniform_columns(t, Y, 0.1)
+    assert grid == pytest.approx(np.arange(13) * 0.1, abs=1e-12)
+    assert Yg[:, 0] == pytest.approx(2.0 * grid + 1.0, abs=1e-12)
+    assert Yg[2, 1] == pytest.approx(0.09 * 2 / 3, abs=1e-12)  # on 0 -> 0.09 over 0.3 s
+    assert Yg[5, 1] == pytest.approx(0.09 + (1.0 - 0.09) * 0.2 / 0.7, abs=1e-12)
+    assert Yg[12, 1] == pytest.approx(1.0 + (1.5625 - 1.0) * 0.2 / 0.25, abs=1e-12)
+
+
+@pytest.mark.parametrize("step", [0.0, -0.1, float("nan"), float("inf")])
+def test_uniform_columns_refuses_a_step_that_is_not_positive(step):
+    with pytest.raises(InvalidConfigError, match="step > 0"):
+        uniform_columns(np.array([0.0, 1.0]), np.zeros((2, 1)), step)
 
 
 def test_read_csv_columns_converts_units_and_names_each_row_s_line(tmp_path):

@@ -1,6 +1,6 @@
 """Columns of numbers: :func:`read_csv_columns` reads the columns of a CSV whose header names
 each column with its unit, into SI arrays, row by row; :func:`interp_columns` resamples columns
-at other times."""
+at other times, :func:`uniform_columns` on a uniform grid."""
 
 import csv
 import math
@@ -141,3 +141,24 @@ def interp_columns(t_new, t, Y, period: float | None = None, out=None) -> np.nda
     for c in range(Y.shape[1]):
         out[:, c] = np.interp(t_new, t, Y[:, c], period=period)
     return out
+
+
+def uniform_columns(t, Y, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Columns known at the times ``t`` resampled on a uniform grid: ``t[0]``, ``t[0]`` +
+    ``step_s``, ... up to ``t[-1]`` (the last step whole; :func:`interp_columns`, linear).
+
+    Args:
+        t: (n,) increasing, s. Y: (n, k) a column per signal. step_s: the grid's step, s.
+    Returns:
+        (grid (m,), Y on it (m, k)).
+    Raises:
+        InvalidConfigError: ``step_s`` not a finite number > 0, or ``t`` empty.
+        ValueError: as :func:`interp_columns`.
+    """
+    t = np.asarray(t, dtype=float)
+    if not (np.isfinite(step_s) and step_s > 0) or t.size == 0:
+        raise InvalidConfigError(
+            f"a uniform grid needs times and a step > 0 s, got {t.size} times, step {step_s}"
+        )
+    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
+    return grid, interp_columns(grid, t, Y)

@@ -37,6 +37,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .columns import interp_columns, uniform_columns
 from .errors import InvalidConfigError
 
 #: Most samples the fine search evaluates the reference at (evenly picked): the score's minimum
@@ -63,7 +64,7 @@ def shift_scores(
     """
     from scipy.signal import correlate
 
-    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
+    grid, y_grid = uniform_columns(t, y, step_s)
     m = len(grid)
     # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
     count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
@@ -72,7 +73,7 @@ def shift_scores(
     ones = np.ones(m)
     score = np.zeros(count)
     for k in np.flatnonzero(weights):
-        ym = np.interp(grid, t, y[:, k])
+        ym = y_grid[:, k]
         r = r_all[:, k]
         centre = float(np.mean(r))  # both less one constant: the differences keep their digits
         ym, r = ym - centre, r - centre
@@ -235,7 +236,7 @@ def signal_lag(
     weights = np.ones(c.shape[1])
 
     def seen(times):
-        return np.column_stack([np.interp(times, t, c[:, j]) for j in range(c.shape[1])])
+        return interp_columns(times, t, c)
 
     step = float(np.median(np.diff(t)))
     d = best_shift(t_in, y_in, weights, seen, (-max_lag_s, max_lag_s), step, offsets)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..base.columns import uniform_columns
 from ..base.lag import (
     REFINE_SAMPLES,
     best_shift,
@@ -194,8 +195,7 @@ def rigid_shift(
     once by FFT)."""
     from scipy.signal import correlate
 
-    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
-    ym = np.column_stack([np.interp(grid, t, y[:, c]) for c in range(3)])
+    grid, ym = uniform_columns(t, y, step_s)
     m = len(grid)
     # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
     count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
