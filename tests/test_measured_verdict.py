@@ -15,6 +15,7 @@ import pytest
 from harmonic_motion import Harmonics, along
 from scipy.spatial.transform import Rotation
 
+from stewart_drake.base.signals import dominant_period
 from stewart_drake.organ_motion import measured_verdict as mv
 from stewart_drake.organ_motion.alignment import Frames
 from stewart_drake.organ_motion.measured_motion import MeasuredMotion
@@ -23,7 +24,6 @@ from stewart_drake.organ_motion.measured_verdict import (
     axis_figures,
     causes_of,
     compared_words,
-    dominant_period,
     judge,
     reversed_match,
     seconds,

@@ -20,7 +20,7 @@ from stewart_drake.references.predictors import (
     HarmonicKalmanModel,
     MulinModel,
     WaveletLMSModel,
-    dominant_period,
+    filter_period,
 )
 
 
@@ -177,16 +177,24 @@ def test_mulin_smooths_its_extrapolated_error_exponentially():
 @pytest.mark.parametrize("rate", [25.0, 5.0])
 def test_the_period_of_a_breath(rate):
     """The period of a 3.7 s sine and of a 4.3 s breath shaped as cos^4 (its harmonics
-    included) over 20 s, at 25 and 5 Hz: within 1 %. White noise, a drift and rest: none."""
+    included) over 20 s, at 25 and 5 Hz: within 1 %. White noise, a drift, rest, and a period
+    beyond the range looked for (a 0.3 s tremor) or half the samples' span (a 14 s wave): none."""
     dt = 1.0 / rate
     t = np.arange(0.0, 20.0, dt)
-    assert dominant_period(np.sin(2 * np.pi * t / 3.7), dt) == pytest.approx(3.7, rel=0.01)
+    assert filter_period(np.sin(2 * np.pi * t / 3.7), dt) == pytest.approx(3.7, rel=0.01)
     breath = np.cos(np.pi * t / 4.3) ** 4
-    assert dominant_period(breath, dt) == pytest.approx(4.3, rel=0.01)
+    assert filter_period(breath, dt) == pytest.approx(4.3, rel=0.01)
     noise = np.random.default_rng(0).normal(size=t.size)
-    assert math.isnan(dominant_period(noise, dt))
-    assert math.isnan(dominant_period(0.01 * t, dt))
-    assert math.isnan(dominant_period(np.zeros_like(t), dt))
+    assert math.isnan(filter_period(noise, dt))
+    assert math.isnan(filter_period(0.01 * t, dt))
+    assert math.isnan(filter_period(np.zeros_like(t), dt))
+    assert math.isnan(filter_period(np.sin(2 * np.pi * t / 14.0), dt))
+    if rate > 2 / 0.3:
+        assert math.isnan(filter_period(np.sin(2 * np.pi * t / 0.3), dt))
+    # Within the range, the edges are kept: 0.5 s at 25 Hz, 10 s (half of 20 s) at both rates.
+    if rate == 25.0:
+        assert filter_period(np.sin(2 * np.pi * t / 0.52), dt) == pytest.approx(0.52, rel=0.01)
+    assert filter_period(np.sin(2 * np.pi * t / 9.8), dt) == pytest.approx(9.8, rel=0.02)
 
 
 def _kalman_written_out(y, dt, omega, H, settings, K):
@@ -245,7 +253,7 @@ def test_the_kalman_filter_is_the_textbook_filter_of_its_model(monkeypatch):
     out with dense matrices, on a noisy two-harmonic breath at 5 Hz; before its start it holds
     the newest sample."""
     dt, period, K = 0.2, 4.0, 5
-    monkeypatch.setattr(predictors, "dominant_period", lambda x, dt: period)
+    monkeypatch.setattr(predictors, "filter_period", lambda x, dt: period)
     t = np.arange(0.0, 40.0, dt)
     rng = np.random.default_rng(1)
     y = 0.004 * np.sin(2 * np.pi * t / period) + 0.001 * np.cos(4 * np.pi * t / period + 0.3)

@@ -85,6 +85,12 @@ MODULES = {
     "stewart_drake/organ_motion/alignment.py": ("tests/test_alignment.py",),
     # The one lag search: its own tests and verify's clock's, which drive its score and search.
     "stewart_drake/base/lag.py": ("tests/test_lag.py", "tests/test_alignment.py"),
+    # The signal toolkit: its own tests, the verdict's periods and the Kalman model's.
+    "stewart_drake/base/signals.py": (
+        "tests/test_signals.py",
+        "tests/test_measured_verdict.py",
+        "tests/test_predictors.py",
+    ),
     "stewart_drake/organ_motion/measured_verdict.py": ("tests/test_measured_verdict.py",),
     "stewart_drake/organ_motion/verdict_sensitivity.py": (
         "tests/test_measured_verdict.py",

@@ -1,8 +1,8 @@
-"""A motion's main direction, defined once for every caller: the Diagram's surrogate signal and
-its lag matching, the robot session's lag matching and relative latency, and a reproduced pair's
-report.
+"""A sampled motion's figures, each defined once for every caller.
 
-**The principal direction** of a motion's translations (:func:`principal_direction`): the first
+**The principal direction** of a motion's translations (:func:`principal_direction`; the
+Diagram's surrogate signal and its lag matching, the robot session's lag matching and relative
+latency, a reproduced pair's report): the first
 principal axis of its (n, 3) samples about their mean (the right singular vector of the largest
 singular value), signed so that its largest component is positive. A motion along one axis has
 that axis; a motion along a diagonal has the diagonal, where the coordinate that moves most
@@ -12,10 +12,16 @@ measured along it (:func:`principal_displacement`, :func:`~.lag.signal_lag`).
 **The parabolic refinement** of a sampled peak (:func:`parabolic_peak`): the vertex of the
 parabola through the largest sample and its two neighbours, between samples. Every sampled peak
 the package places finer than its step goes through it: a lag's cross-correlation, a period's
-autocorrelation or spectrum.
+spectrum.
+
+**The dominant period** of a sampled motion (:func:`dominant_period`): the period of its
+strongest spectral peak, with the share of its power the peak holds; the Kalman predictor's
+breathing model and a measured motion's verdict both read it, each with its own threshold.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -80,6 +86,40 @@ def parabolic_peak(a: float, b: float, c: float) -> float:
     return float(shift) if np.isfinite(shift) else 0.0
 
 
+def centred(v) -> np.ndarray:
+    """v (n,) less its mean, exactly zero where v does not vary: its first value is taken away
+    first, because the mean of n equal floats is not always equal to them, and the rounding left
+    would give a signal held still a gain, a correlation and a period."""
+    v = np.asarray(v, dtype=float)
+    v = v - v[0]
+    return v - np.mean(v)
+
+
+def dominant_period(t, v) -> tuple[float, float]:
+    """(period s, share): the period of the strongest spectral peak of v (n,) at the even times
+    t (n,) (:func:`centred`; a Hann window; the spectrum zero-padded 8 times and the peak
+    refined by :func:`parabolic_peak` through the logarithms of its bins) and the share of the
+    motion's power within two bins of it (NaN, 0 for fewer than 8 samples or no motion). What
+    counts as periodic (the share needed, the periods looked for) is the caller's."""
+    n = len(v)
+    if n < 8:
+        return math.nan, 0.0
+    v = centred(v)
+    if not np.any(v):
+        return math.nan, 0.0
+    dt = float(np.median(np.diff(t)))
+    pad = 8 * n
+    power = np.abs(np.fft.rfft(v * np.hanning(n), pad)) ** 2
+    power[0] = 0.0
+    k = int(np.argmax(power))
+    if k == 0:
+        return math.nan, 0.0
+    share = float(np.sum(power[max(k - 16, 1) : k + 17]) / np.sum(power))
+    if 0 < k < len(power) - 1:
+        k = k + parabolic_peak(*np.log(power[k - 1 : k + 2] + 1e-300))
+    return float(pad * dt / k), share
+
+
 def direction_words(u) -> str:
     """``u`` (3,) in words: the axis's name ("X", "Y" or "Z", with "-" for its negative) when
     it is one to 1e-3, else its components, "(0.6, 0, 0.8)"."""
@@ -90,4 +130,11 @@ def direction_words(u) -> str:
     return "(" + ", ".join(f"{v:.3g}" for v in u) + ")"
 
 
-__all__ = ["principal_direction", "principal_displacement", "parabolic_peak", "direction_words"]
+__all__ = [
+    "principal_direction",
+    "principal_displacement",
+    "parabolic_peak",
+    "centred",
+    "dominant_period",
+    "direction_words",
+]

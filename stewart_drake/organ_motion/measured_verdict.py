@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..base.signals import parabolic_peak
+from ..base.signals import centred, dominant_period
 from .fidelity import AXES, format_angle, format_length, format_window
 from .verdict_sensitivity import (
     MAX_TURN_RAD,
@@ -126,46 +126,13 @@ def _signed(k: int, v: float) -> str:
     return f"{v * 1e3:+.3g} mm" if k >= 3 else f"{math.degrees(v):+.3g} deg"
 
 
-def _centred(v) -> np.ndarray:
-    """v (n,) less its mean, exactly zero where v does not vary: its first value is taken away
-    first, because the mean of n equal floats is not always equal to them, and the rounding left
-    gave an axis the reference holds still a gain, a correlation and a period."""
-    v = np.asarray(v, dtype=float)
-    v = v - v[0]
-    return v - np.mean(v)
-
-
-def dominant_period(t, v) -> tuple[float, float]:
-    """(period s, share): the period of the strongest spectral peak of v (n,) at the even times
-    t (n,) (its mean removed; the spectrum zero-padded 8 times and the peak refined by a
-    parabola through its bins) and the share of the motion's power within two bins of it (NaN,
-    0 for fewer than 8 samples or no motion)."""
-    n = len(v)
-    if n < 8:
-        return math.nan, 0.0
-    v = _centred(v)
-    if not np.any(v):
-        return math.nan, 0.0
-    dt = float(np.median(np.diff(t)))
-    pad = 8 * n
-    power = np.abs(np.fft.rfft(v * np.hanning(n), pad)) ** 2
-    power[0] = 0.0
-    k = int(np.argmax(power))
-    if k == 0:
-        return math.nan, 0.0
-    share = float(np.sum(power[max(k - 16, 1) : k + 17]) / np.sum(power))
-    if 0 < k < len(power) - 1:
-        k = k + parabolic_peak(*np.log(power[k - 1 : k + 2] + 1e-300))
-    return float(pad * dt / k), share
-
-
 def axis_figures(t, x, x_d, measured) -> dict:
     """{axis: figures} of each measured axis over the samples given (module docstring; keys as
     :class:`Judgement`'s ``axes``): t (n,) s; x (n, 6) the aligned measured poses; x_d (n, 6)
     the reference's; measured (6,) bool."""
     out = {}
     for k in np.flatnonzero(measured):
-        q, r = _centred(x[:, k]), _centred(x_d[:, k])
+        q, r = centred(x[:, k]), centred(x_d[:, k])
         var_q, var_r, cov = float(np.mean(q * q)), float(np.mean(r * r)), float(np.mean(q * r))
         both = var_q > 0 and var_r > 0
         period, share = dominant_period(t, x[:, k])
@@ -185,7 +152,7 @@ def axis_figures(t, x, x_d, measured) -> dict:
 
 def _correlation(a, b) -> float:
     """The correlation of a (n,) and b (n,) (0 when either does not vary)."""
-    a, b = _centred(a), _centred(b)
+    a, b = centred(a), centred(b)
     den = math.sqrt(float(np.mean(a * a) * np.mean(b * b)))
     return float(np.mean(a * b)) / den if den > 0 else 0.0
 
@@ -544,7 +511,6 @@ __all__ = [
     "PERIOD_POWER_SHARE",
     "EDGE_S",
     "Judgement",
-    "dominant_period",
     "axis_figures",
     "causes_of",
     "compared_words",

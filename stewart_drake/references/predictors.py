@@ -17,14 +17,15 @@ import math
 
 import numpy as np
 
-from ..base.signals import parabolic_peak
+from ..base.signals import dominant_period
 from .trace_cleaning import noise_estimate
 
-#: The periods :func:`dominant_period` looks for, s: a heartbeat (0.5 s, 120 bpm) to a slow
+#: The periods :func:`filter_period` looks for, s: a heartbeat (0.5 s, 120 bpm) to a slow
 #: breath (12 s).
 PERIOD_RANGE_S = (0.5, 12.0)
-#: The least normalised autocorrelation at the period for the motion to count as periodic.
-MIN_PERIODICITY = 0.3
+#: The least share of the motion's power its spectral peak must hold for the motion to count as
+#: periodic (that of the measured verdict's period too).
+MIN_PERIOD_SHARE = 0.3
 #: Harmonics at or above this fraction of the Nyquist frequency are left out of the model.
 NYQUIST_SHARE = 0.8
 
@@ -160,48 +161,18 @@ class MulinModel:
         return y[None, :] + self._e
 
 
-def dominant_period(x: np.ndarray, dt: float, period_range_s=PERIOD_RANGE_S) -> float:
-    """The period of the motion ``x`` (n,) sampled every ``dt`` s: the lag of the first peak of
-    its autocorrelation (linear trend removed; unbiased, normalised) after it first falls below
-    zero that reaches :data:`MIN_PERIODICITY` and half the largest peak, refined by a parabola
-    through its neighbours; in ``period_range_s`` and at most half the samples' span, s. NaN
-    when the motion shows no period (at rest, noise, a drift).
-
-    The autocorrelation's first peak is the classic pitch estimate (Rabiner, "On the use of
-    autocorrelation analysis for pitch detection", IEEE Trans. ASSP 25, 24, 1977); the
-    thresholds are ours.
-    """
+def filter_period(x: np.ndarray, dt: float, period_range_s=PERIOD_RANGE_S) -> float:
+    """The period the Kalman filter's model holds for the motion ``x`` (n,) sampled every
+    ``dt`` s: its dominant period (:func:`~stewart_drake.base.signals.dominant_period`, the
+    strongest spectral peak) when that peak holds at least :data:`MIN_PERIOD_SHARE` of the
+    motion's power and lies in ``period_range_s`` (and within half the samples' span), s; NaN
+    when the motion shows no such period (at rest, noise, a drift)."""
     x = np.asarray(x, dtype=float)
-    n = x.size
-    if n < 8:
-        return float("nan")
-    t = np.arange(n)
-    x = x - np.polyval(np.polyfit(t, x, 1), t)
-    spectrum = np.fft.rfft(x, 2 * n)
-    r = np.fft.irfft(spectrum * np.conj(spectrum), 2 * n)[:n]
-    if not r[0] > 0:
-        return float("nan")
-    r = r / (n - np.arange(n)) / (r[0] / n)
-    lo = max(2, int(math.floor(period_range_s[0] / dt)))
-    hi = min(int(math.ceil(period_range_s[1] / dt)), n // 2)
-    if hi <= lo + 1:
-        return float("nan")
-    below = np.flatnonzero(r[:hi] < 0)
-    if not below.size:
-        return float("nan")
-    start = max(lo, int(below[0]))
-    seg = r[start : hi + 1]
-    if seg.size < 3:
-        return float("nan")
-    peaks = np.flatnonzero((seg[1:-1] >= seg[:-2]) & (seg[1:-1] > seg[2:])) + 1
-    if not peaks.size:
-        return float("nan")
-    top = seg[peaks].max()
-    good = peaks[(seg[peaks] >= MIN_PERIODICITY) & (seg[peaks] >= 0.5 * top)]
-    if not good.size:
-        return float("nan")
-    j = int(good[0])
-    return float((start + j + parabolic_peak(*seg[j - 1 : j + 2])) * dt)
+    period, share = dominant_period(np.arange(x.size) * dt, x)
+    top = min(period_range_s[1], 0.5 * x.size * dt)
+    if share >= MIN_PERIOD_SHARE and period_range_s[0] <= period <= top:
+        return float(period)
+    return float("nan")
 
 
 class HarmonicKalmanModel:
@@ -219,7 +190,7 @@ class HarmonicKalmanModel:
     textbook one (Joseph form of the covariance update).
 
     Ours: omega is not in the filter's state but measured, every second, as the period of the
-    newest ``kalman_window_s`` of the axis (:func:`dominant_period`), first once half the window
+    newest ``kalman_window_s`` of the axis (:func:`filter_period`), first once half the window
     has arrived (the filter then starts on that half, as if run through it); the process noise
     is ``kalman_q`` (harmonics) and ``kalman_q_level`` (baseline) per square root of a second
     times the axis's standard deviation over the window, the sample noise the noise that
@@ -326,7 +297,7 @@ class HarmonicKalmanModel:
         n = self._n
         if n >= self.warm and (n - self.warm) % self.every == 0:
             window = self._y[-min(n, self.W) :]
-            periods = np.array([dominant_period(window[:, a], self.dt) for a in range(self.m)])
+            periods = np.array([filter_period(window[:, a], self.dt) for a in range(self.m)])
             found = np.isfinite(periods)
             self.omega = np.where(found, 2 * np.pi / np.where(found, periods, 1.0), self.omega)
             new = ~self.started & (np.ptp(window, axis=0) > 0)
@@ -469,11 +440,11 @@ class RecurrentModel:
 
 __all__ = [
     "PERIOD_RANGE_S",
-    "MIN_PERIODICITY",
+    "MIN_PERIOD_SHARE",
     "NYQUIST_SHARE",
     "WaveletLMSModel",
     "MulinModel",
-    "dominant_period",
+    "filter_period",
     "HarmonicKalmanModel",
     "RecurrentModel",
 ]
