@@ -104,22 +104,19 @@ def _principal_axis(measured, reference, t_ref) -> int | None:
 def _best_match(t, v, reference, j: int, shifts: tuple, step: float) -> tuple[float, float]:
     """(the least mean squared distance, each less its mean, between v (n,) at the times t (n,)
     and the reference's axis j over the ``shifts`` (lo, hi) s, in v's units squared; the shift
-    where it is, s) (:func:`~stewart_drake.organ_motion.alignment.shift_scores`)."""
-    from ..organ_motion.alignment import reference_poses, shift_scores
+    where it is, s): the one lag search (:func:`~stewart_drake.base.lag.best_shift`, to a
+    microsecond) and its score there (:func:`~stewart_drake.base.lag.shift_score`)."""
+    from ..base.lag import best_shift, shift_score
+    from ..organ_motion.alignment import reference_poses
 
-    y = np.zeros((len(t), 6))
-    y[:, 0] = v
-    weights = np.zeros(6)
-    weights[0] = 1.0
+    y = np.asarray(v, dtype=float)[:, None]
+    weights = np.ones(1)
 
     def seen(times):
-        r = np.zeros((len(times), 6))
-        r[:, 0] = reference_poses(reference, times)[:, j]
-        return r
+        return reference_poses(reference, times)[:, j : j + 1]
 
-    d, score = shift_scores(t, y, weights, seen, shifts, step, True)
-    k = int(np.argmin(score))
-    return max(float(score[k]), 0.0), float(d[k])
+    d = best_shift(t, y, weights, seen, shifts, step, True)
+    return max(shift_score(t, y, weights, seen, d, True), 0.0), d
 
 
 def swapped_words(
