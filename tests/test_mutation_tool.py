@@ -210,3 +210,17 @@ def test_the_scores_go_to_the_docs_and_the_survivors_beside_the_tool():
     assert "## Survivors in `stewart_drake/robot/statics.py`" in survivors
     assert "- `x_f__mutmut_4` (survived): **unaccounted**" in survivors
     assert "  +b" in survivors.splitlines() and "1 of 1 without an account." in survivors
+
+
+def test_without_mutmut_the_tool_says_how_to_install_it_before_any_work(monkeypatch, capsys):
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util,
+        "find_spec",
+        lambda name, *a: None if name == "mutmut" else real(name, *a),
+    )
+    monkeypatch.setattr(mutation, "run_module", lambda *a: pytest.fail("ran without mutmut"))
+    with pytest.raises(SystemExit) as stop:
+        mutation.main(["--module", "signals"])
+    assert stop.value.code == 2
+    assert 'pip install -e ".[test,mutation]"' in capsys.readouterr().err

@@ -666,6 +666,10 @@ def main(argv=None) -> int:
         raw = read_checked(args.before, "--before", MAX_INPUT_BYTES, "give a --json it wrote")
         before = json.loads(raw.decode("utf-8"))
     accounts = load_accounts()
+    import importlib.util
+
+    if importlib.util.find_spec("mutmut") is None:
+        parser.error('mutmut is not installed: pip install -e ".[test,mutation]"')
     work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
     results = [run_module(m, t, work) for m, t in chosen.items()]
     summary, survivors = report(results, accounts, before)
