@@ -24,7 +24,7 @@ import numpy as np
 
 from ...base.errors import InvalidConfigError
 from ...base.lag import signal_lag
-from ...base.signals import parabolic_peak, principal_direction
+from ...base.signals import principal_direction
 
 
 def _uniform(t: np.ndarray) -> float:
@@ -101,19 +101,23 @@ def relative_latency(
 
 
 def lead_s(t, internal, external, max_s: float = 2.0) -> float:
-    """The external's lead on the internal, s, by normalised cross-correlation: the shift tau in
-    [-max_s, max_s] at which Pearson's correlation of external(t) with internal(t + tau) is
-    greatest in either sense, the smaller in magnitude of its greatest and its least (so that a
-    pair whose axes point opposite ways, a tumour moving inferior as the chest rises, is not read
-    half a breath off); the correlation over a window fixed for every tau (the record less max_s
-    at each end; the internal linearly interpolated), on the samples' step, each extreme refined
-    by a parabola.
+    """The external's lead on the internal, s: the shift tau in [-max_s, max_s] at which the
+    external(t), standardised, comes nearest the internal(t + tau), standardised (the one lag
+    search, :func:`~stewart_drake.base.lag.best_shift`, a constant offset removed: for two
+    standardised signals the mean squared distance is 2 (1 - Pearson's correlation), so the
+    nearest shift is the most correlated), searched for the external and for its opposite, the
+    smaller in magnitude of the two taken (so that a pair whose axes point opposite ways, a
+    tumour moving inferior as the chest rises, is not read half a breath off); over a window
+    fixed for every tau (the record less max_s at each end; the internal linearly
+    interpolated), on the samples' step, then to a microsecond.
 
     Args:
         t: (n,) uniform s. internal, external: (n,) m.
     Raises:
         InvalidConfigError: too few samples, not uniform, or a record shorter than 2 max_s.
     """
+    from ...base.lag import best_shift
+
     t = np.asarray(t, float)
     h = _uniform(t)
     i = np.asarray(internal, float)
@@ -122,25 +126,18 @@ def lead_s(t, internal, external, max_s: float = 2.0) -> float:
     inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
     if inner.sum() < 8:
         raise InvalidConfigError(f"a lead of up to {max_s:g} s needs a longer record")
-    lags = np.arange(-k, k + 1) * h
-    ei = e[inner] - e[inner].mean()
-    ei /= np.linalg.norm(ei) or 1.0
+    zi = (i - i.mean()) / (np.std(i) or 1.0)
+    ze = e[inner] - e[inner].mean()
+    ze /= np.std(ze) or 1.0
 
-    def r(tau: float) -> float:
-        x = np.interp(t[inner] + tau, t, i)
-        x -= x.mean()
-        return float(np.dot(ei, x) / (np.linalg.norm(x) or 1.0))
+    def seen(times):
+        return np.interp(times, t, zi)[:, None]
 
-    rs = np.array([r(tau) for tau in lags])
-    return min((_peak(lags, rs, h), _peak(lags, -rs, h)), key=abs)
-
-
-def _peak(lags: np.ndarray, rs: np.ndarray, h: float) -> float:
-    """The lag of the largest of ``rs``, refined by a parabola through it and its neighbours."""
-    n = int(np.argmax(rs))
-    if 0 < n < len(rs) - 1:
-        return float(lags[n] + h * parabolic_peak(*rs[n - 1 : n + 2]))
-    return float(lags[n])
+    leads = [
+        best_shift(t[inner], sign * ze[:, None], np.ones(1), seen, (-k * h, k * h), h, True)
+        for sign in (1.0, -1.0)
+    ]
+    return min(leads, key=abs)
 
 
 def hysteresis_area(internal, external) -> float:
