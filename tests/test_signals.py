@@ -64,6 +64,27 @@ def test_an_elliptic_motion_takes_its_long_axis():
     np.testing.assert_allclose(principal_direction(x), (1, 0, 0), atol=1e-9)
 
 
+def test_two_samples_make_a_direction_the_line_between_them():
+    two = np.array([[0.0, 0.0, 0.0], [0.0, -0.003, 0.004]])
+    np.testing.assert_allclose(principal_direction(two), (0, -0.6, 0.8), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("u", "words"),
+    [
+        ((0.0, 0.0, -1.0), "-Z"),
+        ((-1.0, 0.0, 0.0), "-X"),
+        ((0.0, 1.0, 0.0), "Y"),
+        # Either side of 1e-3 from an axis: named within it, in components beyond it.
+        ((0.0, 1 - 0.9e-3, 0.0424), "Y"),
+        ((0.0, -(1 - 0.9e-3), 0.0424), "-Y"),
+        ((0.0, 1 - 1.1e-3, 0.0469), "(0, 0.999, 0.0469)"),
+    ],
+)
+def test_direction_words_name_an_axis_with_its_sign_and_nothing_else(u, words):
+    assert direction_words(u) == words
+
+
 def test_a_still_motion_has_z_and_wrong_samples_are_refused():
     np.testing.assert_array_equal(principal_direction(np.ones((5, 6))), (0, 0, 1))
     for bad, words in (
@@ -121,7 +142,14 @@ def test_the_parabolic_peak_of_a_sampled_gaussian_refines_toward_its_true_peak()
 
 
 @pytest.mark.parametrize(
-    "three", [(1.0, 1.0, 1.0), (2.0, 1.0, 2.0), (0.0, 1.0, 3.0), (np.nan, 1.0, 0.5)]
+    "three",
+    [
+        (1.0, 1.0, 1.0),
+        (2.0, 1.0, 2.0),
+        (0.0, 1.0, 3.0),
+        (np.nan, 1.0, 0.5),
+        (-np.inf, 1.0, 0.5),  # a log of zero power beside the peak: no finite vertex
+    ],
 )
 def test_no_parabolic_peak_where_the_three_make_no_maximum(three):
     assert parabolic_peak(*three) == 0.0
