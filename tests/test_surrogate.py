@@ -56,7 +56,7 @@ def test_drift_of_the_external_alone_is_found():
 def test_delay_is_the_shift_of_the_measured_signal(d):
     commanded = 5e-3 * np.sin(W * T) + 1e-3 * np.sin(3 * W * T)
     measured = np.interp(T - d, T, commanded) + 2e-4  # late by d, with an offset removed
-    assert sf.delay_s(T, commanded, measured, 0.1) == pytest.approx(d, abs=1e-4)
+    assert sf.lag_s(T, commanded, measured, 0.1) == pytest.approx(d, abs=1e-4)
 
 
 def test_relative_latency_is_internal_delay_less_external_delay():

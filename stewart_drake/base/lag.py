@@ -4,13 +4,14 @@ search for every lag the package measures.
 Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.alignment`), the pair's
 relative latency on measurements (``verify --surrogate``,
 :mod:`stewart_drake.surrogate.pair_judgement`) and its swap test
-(:mod:`stewart_drake.surrogate.pair_causes`), a reproduced pair's delays and its external's lead
+(:mod:`stewart_drake.surrogate.pair_causes`), a reproduced pair's lags and its external's lead
 (:mod:`stewart_drake.station.surrogate.sync_figures`) and the robot's lags from its encoders
 (:mod:`stewart_drake.live.encoder_relative_latency`). Not yet through it: ``reproduce``'s lag of
 the achieved motion (:func:`stewart_drake.organ_motion.fidelity.time_lag`, a normalised
-cross-correlation) and the calibration's clock (:mod:`stewart_drake.calibration.clock`). The method is IntERAct's
-(``RMSEAlignMethod.m``, ``findOptimalShift``; Kaczynska et al. 2026): the shift of least RMS
-difference, a constant offset removed, here without their 0.05 s grid.
+cross-correlation) and the calibration's clock (:mod:`stewart_drake.calibration.clock`).
+
+The method is IntERAct's (``RMSEAlignMethod.m``, ``findOptimalShift``; Kaczynska et al. 2026):
+the shift of least RMS difference, a constant offset removed, here without their 0.05 s grid.
 
 **The shift** d, s: a measured sample at time t shows the reference at t + d. **The lag** of the
 measured behind its command is L = -d: measured(t) ~ commanded(t - L), L > 0 the measured moves

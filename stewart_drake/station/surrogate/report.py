@@ -101,9 +101,9 @@ def report_lines(fig: dict) -> list[str]:
     lines = [
         f"surrogate: RMS error {fig['external_rms_m'] * 1e6:.3g} um against its signal; "
         f"internal target RMS {max(fig['internal_rms_m']) * 1e6:.3g} um (worst axis)",
-        f"relative latency {lat['relative_latency_s'] * 1e3:+.3g} ms (target delay "
-        f"{lat['delay_internal_s'] * 1e3:+.3g} ms less surrogate delay "
-        f"{lat['delay_external_s'] * 1e3:+.3g} ms; > 0: the target late, < 0: the surrogate late)",
+        f"relative latency {lat['relative_latency_s'] * 1e3:+.3g} ms (target lag "
+        f"{lat['lag_internal_s'] * 1e3:+.3g} ms less surrogate lag "
+        f"{lat['lag_external_s'] * 1e3:+.3g} ms; > 0: the target late, < 0: the surrogate late)",
         f"lead of the external: asked {a['lead_s']:+.3f} s, reproduced {r['lead_s']:+.3f} s",
         f"hysteresis area per cycle: asked {a['hysteresis_area_m2'] * 1e6:+.3g} mm^2, "
         f"reproduced {r['hysteresis_area_m2'] * 1e6:+.3g} mm^2",

@@ -1,10 +1,11 @@
-"""The figures of an internal-external pair, defined once: each signal's delay behind what it was
+"""The figures of an internal-external pair, defined once: each signal's lag behind what it was
 asked, their relative latency, and the pair's relationship (lead, hysteresis loop, correlation,
 amplitude ratio, baseline drift).
 
-Sign conventions (docs/surrogate.md, "Reading the relative latency"):
+Sign conventions (docs/surrogate.md, "Reading the relative latency"; the words for time offsets
+as docs/index.md defines them):
 
-- a **delay** d > 0: the measured signal comes d after the commanded one (measured(t) ~
+- a **lag** d > 0: the measured signal comes d after the commanded one (measured(t) ~
   commanded(t - d)).
 - the **relative latency** = d_internal - d_external: > 0, the internal target arrives late
   against the surrogate (the surrogate early), so the pair's reproduced lead of the external is
@@ -37,7 +38,7 @@ def _uniform(t: np.ndarray) -> float:
     return h
 
 
-def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
+def lag_s(t, commanded, measured, max_s: float = 0.5) -> float:
     """How late ``measured`` is behind ``commanded``, s: the shift d in [-max_s, max_s] that
     makes measured(t) - commanded(t - d) least in RMS once their mean difference (a constant
     offset) is removed; ``commanded`` linearly interpolated; the package's one lag search
@@ -54,7 +55,7 @@ def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
     k = max(int(np.ceil(max_s / h)), 1)
     inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
     if inner.sum() < 8:
-        raise InvalidConfigError(f"a delay of up to {max_s:g} s needs a longer record")
+        raise InvalidConfigError(f"a lag of up to {max_s:g} s needs a longer record")
     c = np.asarray(commanded, float).reshape(len(t), -1)
     m = np.asarray(measured, float).reshape(len(t), -1)
     return signal_lag(t, m, c, max_s, offsets=True, min_samples=8)[0]
@@ -64,9 +65,9 @@ def relative_latency(
     t, internal, internal_measured, external, external_measured, max_s: float = 0.5
 ) -> dict:
     """The relative latency of a pair, the one definition (module docstring): the internal
-    target's delay along its principal direction (:func:`~stewart_drake.base.signals.
+    target's lag along its principal direction (:func:`~stewart_drake.base.signals.
     principal_direction` of its command's translations) less the surrogate's, each by
-    :func:`delay_s` (a constant offset removed). The robot's session measures its own with the
+    :func:`lag_s` (a constant offset removed). The robot's session measures its own with the
     same (:func:`~stewart_drake.live.encoder_relative_latency.relative_latency`).
 
     Args:
@@ -75,13 +76,13 @@ def relative_latency(
             target as commanded and as reproduced; or (n,) a displacement already along one
             direction.
         external, external_measured: (n,) the surrogate as commanded and as reproduced, m.
-        max_s: the largest delay searched, s.
+        max_s: the largest lag searched, s.
     Returns:
-        {"delay_internal_s", "delay_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
-        (> 0: the internal late), and "direction": the (3,) direction the internal's delay is
+        {"lag_internal_s", "lag_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
+        (> 0: the internal late), and "direction": the (3,) direction the internal's lag is
         measured along (None for a displacement given along one).
     Raises:
-        InvalidConfigError: as :func:`delay_s`; a principal direction of non-finite samples.
+        InvalidConfigError: as :func:`lag_s`; a principal direction of non-finite samples.
     """
     c = np.asarray(internal, float)
     u = None
@@ -90,11 +91,11 @@ def relative_latency(
         m = np.asarray(internal_measured, float)
         c = (c[:, 3:6] if c.shape[1] == 6 else c) @ u
         internal_measured = (m[:, 3:6] if m.shape[1] == 6 else m) @ u
-    d_i = delay_s(t, c, internal_measured, max_s)
-    d_e = delay_s(t, external, external_measured, max_s)
+    d_i = lag_s(t, c, internal_measured, max_s)
+    d_e = lag_s(t, external, external_measured, max_s)
     return {
-        "delay_internal_s": d_i,
-        "delay_external_s": d_e,
+        "lag_internal_s": d_i,
+        "lag_external_s": d_e,
         "relative_latency_s": d_i - d_e,
         "direction": None if u is None else u.tolist(),
     }
