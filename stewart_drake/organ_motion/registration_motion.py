@@ -115,6 +115,30 @@ def _rotation_error(R_ref, R) -> np.ndarray:
     )
 
 
+def _check_registration_input(measured: MeasuredMotion, name: str, max_gap_s: float) -> None:
+    """The refusals of :func:`fit_registration` made before any fit: not a tracker's X, Y and
+    Z, some rotations but not three, a step between samples longer than ``max_gap_s``, or
+    shorter than :data:`MIN_REGISTRATION_S` (``name``: the reference's, for the message)."""
+    from .verification import _samples, seconds
+
+    if measured.kind != "tracker" or not np.all(measured.measured[3:]):
+        raise InvalidConfigError(
+            f"{measured.path}: a registration needs a tracker's X, Y and Z of the marker (a "
+            "3-D tracker's export), not an encoder log or a single-axis sensor"
+        )
+    if np.any(measured.measured[:3]) and not measured.rotations_measured:
+        raise InvalidConfigError(
+            f"{measured.path}: a registration takes the marker's three rotations or none"
+        )
+    t = measured.t
+    _samples(t, max_gap_s)
+    if t[-1] - t[0] < MIN_REGISTRATION_S:
+        raise InvalidConfigError(
+            f"{measured.path}: the registration motion lasts {seconds(t[-1] - t[0])}, shorter "
+            f"than {MIN_REGISTRATION_S:g} s: record at least 30 s of {name}"
+        )
+
+
 def fit_registration(
     reference: Reference,
     measured: MeasuredMotion,
@@ -143,25 +167,11 @@ def fit_registration(
             reversed, fitting clearly better (:data:`BETTER_SHARE`): a frame fitted to it as
             written would be wrong; a step between samples longer than ``max_gap_s``.
     """
-    from .verification import _samples, _search, seconds
+    from .verification import _search
 
     name = getattr(reference, "name", "the reference")
-    if measured.kind != "tracker" or not np.all(measured.measured[3:]):
-        raise InvalidConfigError(
-            f"{measured.path}: a registration needs a tracker's X, Y and Z of the marker (a "
-            "3-D tracker's export), not an encoder log or a single-axis sensor"
-        )
-    if np.any(measured.measured[:3]) and not measured.rotations_measured:
-        raise InvalidConfigError(
-            f"{measured.path}: a registration takes the marker's three rotations or none"
-        )
+    _check_registration_input(measured, name, max_gap_s)
     t, y = measured.t, measured.poses
-    _samples(t, max_gap_s)
-    if t[-1] - t[0] < MIN_REGISTRATION_S:
-        raise InvalidConfigError(
-            f"{measured.path}: the registration motion lasts {seconds(t[-1] - t[0])}, shorter "
-            f"than {MIN_REGISTRATION_S:g} s: record at least 30 s of {name}"
-        )
     rot = measured.rotations_measured
     search = _search(reference, t, clock_offset_s, max_latency_s)
     fit = _fit(reference, t, y, rot, search)
