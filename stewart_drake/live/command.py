@@ -368,8 +368,6 @@ def _start_emulator(scenario, x0, realtime: bool = False):
 def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
-    from ..run.metrics import format_metrics
-    from .measure import measure_pose
     from .session import end_line, run_on_robot
 
     emulator = None
@@ -384,27 +382,8 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
             )
             emulator = _start_emulator(scenario, args.emulate, args.realtime)
             print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
-        if args.calibrate is not None:
-            from ..station.bus.driver import DynamixelBus
-            from .measure import bus_config, zero_counts_at
-
-            with DynamixelBus.from_config(bus_config(scenario)) as bus:
-                zeros = zero_counts_at(bus, math.radians(args.calibrate))
-            print(
-                f"with every crank held at {args.calibrate:g} deg, put in the scenario's bus:\n"
-                f"  zero_counts: [{', '.join(str(int(c)) for c in zeros)}]"
-            )
-            return 0
-        if args.dry_run:
-            print(
-                "stewart-drake robot: reading the servos' angles, the torque off, and judging "
-                "the pose they give",
-                file=sys.stderr,
-                flush=True,
-            )
-            measured = measure_pose(scenario)
-            print(measured.summary())
-            return 0 if measured.problem is None else 1
+        if args.calibrate is not None or args.dry_run:
+            return _read_only(args, scenario)
         meshcat = None
         if args.meshcat or args.teleop:
             from pydrake.geometry import Meshcat
@@ -444,17 +423,52 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     finally:
         if emulator is not None:
             emulator.close()
+    _print_run(run, scenario, held.get("sd"), emulator)
+    signals.settle(run)
+    print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
+    return run.exit_code
+
+
+def _read_only(args, scenario) -> int:
+    """``robot --calibrate`` (the zero counts at a held angle) or ``--dry-run`` (the pose the
+    servos' angles give, judged), the torque never on: the exit code."""
+    if args.calibrate is not None:
+        from ..station.bus.driver import DynamixelBus
+        from .measure import bus_config, zero_counts_at
+
+        with DynamixelBus.from_config(bus_config(scenario)) as bus:
+            zeros = zero_counts_at(bus, math.radians(args.calibrate))
+        print(
+            f"with every crank held at {args.calibrate:g} deg, put in the scenario's bus:\n"
+            f"  zero_counts: [{', '.join(str(int(c)) for c in zeros)}]"
+        )
+        return 0
+    from .measure import measure_pose
+
+    print(
+        "stewart-drake robot: reading the servos' angles, the torque off, and judging "
+        "the pose they give",
+        file=sys.stderr,
+        flush=True,
+    )
+    measured = measure_pose(scenario)
+    print(measured.summary())
+    return 0 if measured.problem is None else 1
+
+
+def _print_run(run, scenario, sd, emulator) -> None:
+    """A session's figures: its metrics (and, on the emulator, the true pose against the
+    encoders' from the station diagram ``sd``), the loop's timing, the relative latency."""
+    from ..run.metrics import format_metrics
+
     if run.metrics is not None:
         print(format_metrics(run.metrics))
-        if emulator is not None and "sd" in held:
-            print("\n".join(_truth_lines(scenario, held["sd"], emulator, run.metrics)))
+        if emulator is not None and sd is not None:
+            print("\n".join(_truth_lines(scenario, sd, emulator, run.metrics)))
     if run.timing_lines:
         print("control loop timing:\n  " + "\n  ".join(run.timing_lines))
     if run.relative_latency_line is not None:
         print(run.relative_latency_line)
-    signals.settle(run)
-    print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
-    return run.exit_code
 
 
 def _truth_lines(scenario, sd, emulator, metrics) -> list[str]:
