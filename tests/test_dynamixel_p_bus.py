@@ -13,7 +13,6 @@ from conftest import HANG_S, LOADED_MACHINE_BUS, require_extra, wait_for
 require_extra("robot")
 
 from stewart_drake.base.errors import InvalidConfigError  # noqa: E402
-from stewart_drake.robot.linear_stage import LinearStage  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
 from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
@@ -23,6 +22,7 @@ from stewart_drake.station.bus.servos import (  # noqa: E402
     check_bus_settings,
     servo_spec,
 )
+from stewart_drake.station.surrogate.linear_stage import LinearStage  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 MODEL = "PM42-010-S260-R"

@@ -359,7 +359,8 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
     translations, X: its superior-inferior axis), and the Diagram's pair report
     (``sync_figures.relative_latency``) on the session's own samples gives each lag and their
     difference within 0.5 ms."""
-    from stewart_drake.live import encoder_relative_latency, session
+    from stewart_drake.live import session
+    from stewart_drake.station.surrogate import encoder_relative_latency
     from stewart_drake.station.surrogate.axis import SurrogateAxis
     from stewart_drake.station.surrogate.sync_figures import relative_latency
 

@@ -102,7 +102,7 @@ def test_the_robots_verdict_and_the_diagrams_report_measure_one_lag_along_one_di
     (``encoder_relative_latency``) and the Diagram's pair report (``sync_figures``) both judge
     the diagonal, find 20 and 8 ms to 0.1 ms, and agree on the relative latency, +12 ms, to
     0.5 ms; Z, the coordinate that moves most, is not the direction judged."""
-    from stewart_drake.live.encoder_relative_latency import relative_latency as robots
+    from stewart_drake.station.surrogate.encoder_relative_latency import relative_latency as robots
     from stewart_drake.station.surrogate.sync_figures import relative_latency as diagrams
 
     t = np.arange(0.0, 12.0, 0.01)

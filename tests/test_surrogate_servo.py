@@ -1,7 +1,7 @@
 """The surrogate's servo on the bus, without a bus: its settings checked, its carriage's units,
 its position loop on a plant of its own, its path's check, and the relative latency measured
-from encoder samples (stewart_drake/station/bus/surrogate_servo.py,
-stewart_drake/live/encoder_relative_latency.py)."""
+from encoder samples (stewart_drake/station/surrogate/bus_servo.py,
+stewart_drake/station/surrogate/encoder_relative_latency.py)."""
 
 import math
 import re
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.live.encoder_relative_latency import axis_lag, relative_latency
-from stewart_drake.robot.linear_stage import LinearStage
 from stewart_drake.station.bus.servo_models import FirstOrderServos
 from stewart_drake.station.bus.servos import DynamixelBusConfig, SurrogateServoConfig
-from stewart_drake.station.bus.surrogate_servo import SurrogateDrive, check_surrogate_path
+from stewart_drake.station.surrogate.bus_servo import SurrogateDrive, check_surrogate_path
+from stewart_drake.station.surrogate.encoder_relative_latency import axis_lag, relative_latency
+from stewart_drake.station.surrogate.linear_stage import LinearStage
 
 PERIOD_S = 0.01
 

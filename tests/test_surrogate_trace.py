@@ -11,8 +11,8 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
 from stewart_drake.live.surrogate_axis import load_surrogate
-from stewart_drake.references.surrogate_trace import load_surrogate_trace
 from stewart_drake.station.surrogate.pairs import load_external
+from stewart_drake.station.surrogate.trace import load_surrogate_trace
 
 PERIOD_S = 4.0
 

@@ -46,7 +46,7 @@ from .session_signals import SessionSignals, signal_name
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
 
 if TYPE_CHECKING:
-    from .encoder_relative_latency import RelativeLatency
+    from ..station.surrogate.encoder_relative_latency import RelativeLatency
 
 
 @dataclasses.dataclass
@@ -177,7 +177,7 @@ def _check_surrogate_trace(scenario, surrogate) -> None:
     Raises:
         InvalidConfigError: names what and by how much.
     """
-    from ..station.bus.surrogate_servo import check_surrogate_path
+    from ..station.surrogate.bus_servo import check_surrogate_path
 
     config = scenario.bus.surrogate
     if config is None:
@@ -261,7 +261,7 @@ def _command_surrogate(driver, surrogate, homed, scenario) -> None:
     Raises:
         InvalidConfigError: the carriage rests outside the travel, or the lead-in is too fast.
     """
-    from ..station.bus.surrogate_servo import check_surrogate_path
+    from ..station.surrogate.bus_servo import check_surrogate_path
     from .surrogate_axis import SurrogateCommand
 
     drive, period_s = driver.surrogate, scenario.control_period_s
@@ -403,7 +403,7 @@ def _keep_logs(
 def _judge(driver, homed, t, carriage):
     """The relative latency of the run's periods after the homing lead-in, from the
     encoders, held to one control period."""
-    from .encoder_relative_latency import relative_latency
+    from ..station.surrogate.encoder_relative_latency import relative_latency
 
     x_c = homed.evaluate(t)[0]
     return relative_latency(

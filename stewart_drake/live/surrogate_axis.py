@@ -3,10 +3,10 @@ run's clock beside the platform's reference (``stewart-drake robot INTERNAL --su
 EXTERNAL``).
 
 :func:`load_surrogate` reads the external file through the one reader of it, the Diagram's
-too (:func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace`, on the checked
+too (:func:`~stewart_drake.station.surrogate.trace.load_surrogate_trace`, on the checked
 reader of traces; IntERAct's ``Resp/`` 2-column files are its "surrogate" format, the
 displacement in mm on SI) and keeps its one displaced axis
-(:class:`~stewart_drake.references.surrogate_trace.SurrogateTrace`): the carriage's position
+(:class:`~stewart_drake.station.surrogate.trace.SurrogateTrace`): the carriage's position
 ``s`` (m) is that displacement, centred on its mean (the stage's mid-travel).
 :class:`SurrogateCommand` puts it on the run's clock exactly as
 :class:`~.homing.HomingReference` puts the platform's: the same lead-in (a quintic from where
@@ -20,14 +20,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..references.surrogate_trace import SurrogateTrace, load_surrogate_trace
+from ..station.surrogate.trace import SurrogateTrace, load_surrogate_trace
 from .homing import HomingReference
 
 
 def load_surrogate(path) -> SurrogateTrace:
     """The external surrogate's trace at ``path`` for ``robot --surrogate`` (a 2-column file:
     time, displacement in mm; or a headed file with one axis), read by the one reader of the
-    external's file (:func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace`),
+    external's file (:func:`~stewart_drake.station.surrogate.trace.load_surrogate_trace`),
     centred on its mean.
 
     Raises:

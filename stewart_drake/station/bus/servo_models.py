@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from ...robot.linear_stage import LinearStage
 from ...robot.motor_catalogue import catalogue_motor
+from ..surrogate.linear_stage import LinearStage
 from .servos import servo_spec
 
 
@@ -85,9 +85,9 @@ class FirstOrderServos(ServoBackend):
     @classmethod
     def linear_stage(cls, stage: LinearStage, s0_m=0.0):
         """A surrogate's stage: its catalogue servo turning its transmission
-        (:class:`~stewart_drake.robot.linear_stage.LinearStage`), with the stage's inertia at the
-        horn (the rotor's and the carriage's; the belt's or screw's own inertia and friction are
-        not modelled), the carriage at ``s0_m`` (m from the horn's angle 0)."""
+        (:class:`~stewart_drake.station.surrogate.linear_stage.LinearStage`), with the stage's
+        inertia at the horn (the rotor's and the carriage's; the belt's or screw's own inertia and
+        friction are not modelled), the carriage at ``s0_m`` (m from the horn's angle 0)."""
         return cls.from_catalogue(
             stage.motor, [s0_m / stage.metres_per_rad], inertia=stage.inertia_at_horn_kg_m2()
         )

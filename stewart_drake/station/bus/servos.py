@@ -23,9 +23,9 @@ import numpy as np
 
 from ...base.checks import as_number, check_int
 from ...base.errors import InvalidConfigError, StewartError
-from ...robot.linear_stage import LinearStage
 from ...robot.motor_catalogue import catalogue_motor
 from ..hardware import Encoders, Estimator, Hardware, Motors
+from ..surrogate.linear_stage import LinearStage
 from . import protocol as p
 
 
@@ -301,8 +301,8 @@ class SurrogateServoConfig:
     """The surrogate's servo on the robot's bus (a scenario's ``bus.surrogate``; None: no
     surrogate, the bus as before): what is the bus's (the servo's id, its zero and sense, its
     Current Limit, its position loop) and the stage it turns, the part the Diagram's
-    ``surrogate.stage`` is too (:class:`~stewart_drake.robot.linear_stage.LinearStage`: by
-    default the catalogue's XM430-W350-T on a GT2 belt, 80 mm a turn; its figures and sources
+    ``surrogate.stage`` is too (:class:`~stewart_drake.station.surrogate.linear_stage.LinearStage`:
+    by default the catalogue's XM430-W350-T on a GT2 belt, 80 mm a turn; its figures and sources
     there).
 
     Attributes:

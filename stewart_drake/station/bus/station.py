@@ -38,9 +38,9 @@ from ...robot.forward_kinematics import fk
 from ...robot.kinematics import X_HOME
 from ...robot.single_pose import ik_single, jacobian_single
 from ..station import PlatformPoseSensor, add_station_plant
+from ..surrogate.bus_servo import SurrogateDrive
 from .driver import DynamixelBus
 from .measured_state import MeasuredPlantState, ShowMeasured, bus_kernels
-from .surrogate_servo import SurrogateDrive
 from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
@@ -79,7 +79,7 @@ class DynamixelDriver(LeafSystem):
         stream: where the misses' summary lines go (:meth:`miss_line`, one when their count
             reaches a power of two; default stderr). timing_window: periods kept for
             :meth:`timing_summary` (its records are allocated once, 9 numbers a period).
-        surrogate: None, or the :class:`~.surrogate_servo.SurrogateDrive` of a bus with a
+        surrogate: None, or the :class:`~..surrogate.bus_servo.SurrogateDrive` of a bus with a
             surrogate's servo: each period its torque goes in the same sync write as the
             cranks', from the reading of the same sync read.
         quantum_rad: one count of the servos' encoders, rad (default the X series' 4096 a
@@ -437,7 +437,7 @@ class HardwareStation(Diagram):
             reference at the time it was read (:func:`~stewart_drake.run.result.finish_result`).
     Args:
         plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``; a
-            ``bus.surrogate`` gives the driver its :class:`~.surrogate_servo.SurrogateDrive`
+            ``bus.surrogate`` gives the driver its :class:`~..surrogate.bus_servo.SurrogateDrive`
             (the surrogate's stage driven in the same packets, its command the session's).
         meshcat: optional pydrake Meshcat: the robot drawn at its measured pose every
             ``scenario.visualization.publish_period``.

@@ -1,5 +1,5 @@
 """Recorded internal-external pairs: the external's file read by the one reader of it, the
-robot's too (:func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace`, on the
+robot's too (:func:`~stewart_drake.station.surrogate.trace.load_surrogate_trace`, on the
 checked reader of traces; IntERAct's ``Resp/`` files are its "surrogate" format, 2 columns, time
 s and displacement mm), as a signal in m on the run's clock.
 
@@ -12,17 +12,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from ...references.surrogate_trace import load_surrogate_trace
+from .trace import load_surrogate_trace
 
 
 def load_external(path, format: str = "auto", columns: str = "", internal=None) -> Callable:
     """The external signal of a recorded file, m about its mean, as a function of t (s) on the
     clock of ``internal`` (the motion it was recorded with: their files' times as written
-    relate them, :meth:`~stewart_drake.references.surrogate_trace.SurrogateTrace.on_clock_of`;
+    relate them, :meth:`~stewart_drake.station.surrogate.trace.SurrogateTrace.on_clock_of`;
     None: the file's own, from its first time).
 
     The file is read whole by
-    :func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace` (the checks,
+    :func:`~stewart_drake.station.surrogate.trace.load_surrogate_trace` (the checks,
     smoothing and resampling of :func:`~stewart_drake.references.traces.load_trace`) with a
     one-axis trace expected: the displacement is the file's own, about its mean.
 

@@ -1,12 +1,12 @@
 """The external surrogate's stage: a 1-DoF linear axis (a servo driving a toothed belt) with its own
 controller, as Drake systems in the platform's Diagram and on its clock.
 
-:class:`SurrogateStage` is the scenario's section: the part, one definition with the servo
-bus's (:class:`~stewart_drake.robot.linear_stage.LinearStage`: by default a ROBOTIS Dynamixel
-XM430-W350-T on a GT2 belt over a 40-tooth pulley, 80 mm of travel a turn of the horn, its
-speed, force and resolution derived from the motor catalogue), and its position loop.
-:func:`add_surrogate_stage` adds the axis to a ``DiagramBuilder`` from Drake's own systems only
-(no Python on the per-step path):
+:class:`SurrogateStage` is the scenario's section: the part, one definition with the servo bus's
+(:class:`~stewart_drake.station.surrogate.linear_stage.LinearStage`: by default a ROBOTIS Dynamixel
+XM430-W350-T on a GT2 belt over a 40-tooth pulley, 80 mm of travel a turn of the horn, its speed,
+force and resolution derived from the motor catalogue), and its position loop.
+:func:`add_surrogate_stage` adds the axis to a ``DiagramBuilder`` from Drake's own systems only (no
+Python on the per-step path):
 
     goal table (TrajectorySource, zero-order hold of the goals, each rounded to one count)
       -> PD + feed-forward (MatrixGain on [p_d, v_d, a_d, p, v])
@@ -39,13 +39,13 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ...base.checks import as_number
 from ...base.errors import InvalidConfigError
-from ...robot.linear_stage import LinearStage
+from .linear_stage import LinearStage
 
 
 @dataclass
 class SurrogateStage(LinearStage):
-    """The surrogate's linear stage in the Diagram, a scenario section (``surrogate.stage``):
-    the part (:class:`~stewart_drake.robot.linear_stage.LinearStage`, the same as the servo
+    """The surrogate's linear stage in the Diagram, a scenario section (``surrogate.stage``): the
+    part (:class:`~stewart_drake.station.surrogate.linear_stage.LinearStage`, the same as the servo
     bus's ``bus.surrogate.stage``: its fields, defaults and sources) and its position loop; SI
     units.
 

@@ -68,7 +68,7 @@ def relative_latency(
     target's lag along its principal direction (:func:`~stewart_drake.base.signals.
     principal_direction` of its command's translations) less the surrogate's, each by
     :func:`lag_s` (a constant offset removed). The robot's session measures its own with the
-    same (:func:`~stewart_drake.live.encoder_relative_latency.relative_latency`).
+    same (:func:`~stewart_drake.station.surrogate.encoder_relative_latency.relative_latency`).
 
     Args:
         t: (n,) uniform s, the one clock of both.

@@ -2,17 +2,17 @@
 (``reproduce --surrogate``) and the robot's (``robot --surrogate``) alike.
 
 :func:`load_surrogate_trace` reads the file through the one checked reader of traces
-(:func:`~.traces.load_trace`: its checks, smoothing and resampling; IntERAct's ``Resp/``
-2-column files are its "surrogate" format, time s and displacement mm on SI), centred on its
-mean, and keeps its one displaced line: a :class:`SurrogateTrace`, the carriage's position
-``s`` (m) as the file's own displacement (the axis map's sign undone) about its mean.
+(:func:`~stewart_drake.references.traces.load_trace`: its checks, smoothing and resampling;
+IntERAct's ``Resp/`` 2-column files are its "surrogate" format, time s and displacement mm on SI),
+centred on its mean, and keeps its one displaced line: a :class:`SurrogateTrace`, the carriage's
+position ``s`` (m) as the file's own displacement (the axis map's sign undone) about its mean.
 """
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError
-from ..robot.kinematics import AXIS_NAMES
-from .traces import load_trace
+from ...base.errors import InvalidConfigError
+from ...references.traces import load_trace
+from ...robot.kinematics import AXIS_NAMES
 
 
 class SurrogateTrace:
@@ -33,8 +33,9 @@ class SurrogateTrace:
 
     def on_clock_of(self, internal) -> "SurrogateTrace":
         """This trace on the clock of ``internal``, the motion it was recorded with
-        (:func:`~.clock.on_clock_of`: a file that starts later is played later by as much)."""
-        from .clock import on_clock_of
+        (:func:`~stewart_drake.references.clock.on_clock_of`: a file that starts later is played
+        later by as much)."""
+        from ...references.clock import on_clock_of
 
         shifted = on_clock_of(self.trace, internal)
         if shifted is self.trace:
@@ -66,7 +67,7 @@ def load_surrogate_trace(
     Args:
         path: a 2-column file (time, displacement in mm: the "surrogate" format), or a headed
             file of one translation (or one whose other columns ``columns`` names ``-``).
-        format, columns: as :func:`~.traces.load_trace`'s.
+        format, columns: as :func:`~stewart_drake.references.traces.load_trace`'s.
         option: how a refusal names where the path came from (the command's option).
         columns_option: the command's option that names the columns, offered in a refusal
             (None: the command has none).

@@ -1,45 +1,44 @@
 """The external surrogate's stage as a seventh servo on the robot's bus: a DYNAMIXEL turning the
 stage whose carriage carries the chest marker, driven in the cranks' period.
 
-:class:`~.servos.SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is
-and the stage it turns (:class:`~stewart_drake.robot.linear_stage.LinearStage`, the part the
-Diagram's stage is too); :class:`SurrogateDrive` is its controller on the loop's computer, as the
-cranks' controllers are: each period it turns the carriage's commanded position, rate and
-acceleration (the session gives them on the run's clock) and the last reading of the servo's
-encoder into a torque at the horn, which the driver sends as the seventh row of the period's one
-sync write of Goal Current (:meth:`~.driver.DynamixelBus.write_torques`); the servo's encoder
-comes back as the seventh status of the period's one sync read. Like the cranks it is in Current
-Control Mode (a sync write writes one address for all its servos: the cranks' Goal Current).
+:class:`~..bus.servos.SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is
+and the stage it turns (:class:`~stewart_drake.station.surrogate.linear_stage.LinearStage`, the part
+the Diagram's stage is too); :class:`SurrogateDrive` is its controller on the loop's computer, as
+the cranks' controllers are: each period it turns the carriage's commanded position, rate and
+acceleration (the session gives them on the run's clock) and the last reading of the servo's encoder
+into a torque at the horn, which the driver sends as the seventh row of the period's one sync write
+of Goal Current (:meth:`~..bus.driver.DynamixelBus.write_torques`); the servo's encoder comes back
+as the seventh status of the period's one sync read. Like the cranks it is in Current Control Mode
+(a sync write writes one address for all its servos: the cranks' Goal Current).
 
 The carriage's position ``s`` (m, 0 at mid-travel) from the servo's Present Position:
 ``s = (counts - zero_counts) * lead_m_per_rev / counts_per_rev * direction`` (4096 a turn on
 the X series).
 
-The controller (:meth:`SurrogateDrive.torque`), in the horn's angle theta = 2 pi s / lead: tau =
-J a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c - v_m), where J is the
+The controller (:meth:`SurrogateDrive.torque`), in the horn's angle theta = 2 pi s / lead: tau = J
+a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c - v_m), where J is the
 rotor's reflected inertia plus the carriage's mass through the transmission (m (lead / 2 pi)^2:
-:meth:`~stewart_drake.robot.linear_stage.LinearStage.inertia_at_horn_kg_m2`), b and c the
-servo's viscous and dry friction (the motor catalogue's figures), theta_p the reading predicted
+:meth:`~stewart_drake.station.surrogate.linear_stage.LinearStage.inertia_at_horn_kg_m2`), b and c
+the servo's viscous and dry friction (the motor catalogue's figures), theta_p the reading predicted
 one period on (theta_m + h v_m: the torque acts a period after the reading it came from, as the
-cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi ``bandwidth_hz`` (a critically damped
-double integrator). The dry friction's feed-forward fades through a commanded reversal over
-v_eps = max(|alpha_c| h, v_min): the rate the command itself changes by in one period (the
-commanded rate is exact, not measured, so the fade need only keep the torque from stepping
-inside the period of the reversal), v_min a tenth of an encoder count a period. A fade of one
-count a period (0.15 rad/s) left the friction under-compensated over a breath's slow turns on a
-belt, where the horn turns slower for the same carriage speed: the carriage lagged its command
-by 1.3-1.7 ms on IntERAct's pairs (0.1-0.2 ms on a 50 mm lead). The torque is in the
-carriage's sense (positive drives ``s`` up). The weight of a vertical carriage (m g lead / 2
-pi: 37 mN m for 0.3 kg on the default belt's 80 mm a turn, 0.9 % of the servo's stall torque)
-is left to the position loop.
+cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi ``bandwidth_hz`` (a critically damped double
+integrator). The dry friction's feed-forward fades through a commanded reversal over v_eps =
+max(|alpha_c| h, v_min): the rate the command itself changes by in one period (the commanded rate is
+exact, not measured, so the fade need only keep the torque from stepping inside the period of the
+reversal), v_min a tenth of an encoder count a period. A fade of one count a period (0.15 rad/s)
+left the friction under-compensated over a breath's slow turns on a belt, where the horn turns
+slower for the same carriage speed: the carriage lagged its command by 1.3-1.7 ms on IntERAct's
+pairs (0.1-0.2 ms on a 50 mm lead). The torque is in the carriage's sense (positive drives ``s``
+up). The weight of a vertical carriage (m g lead / 2 pi: 37 mN m for 0.3 kg on the default belt's 80
+mm a turn, 0.9 % of the servo's stall torque) is left to the position loop.
 
 The stage is the cited part by default (the catalogue's XM430-W350-T on a GT2 belt over a
 40-tooth pulley: 80 mm a turn, 61.3 mm/s at no load). A command may ask for
-:data:`~.servos.SPEED_MARGIN` (80 %) of the no-load speed, 49.1 mm/s, which
+:data:`~..bus.servos.SPEED_MARGIN` (80 %) of the no-load speed, 49.1 mm/s, which
 :func:`check_surrogate_path` holds a path to before anything is powered, with the travel
 (100 mm). docs/robot.md, "The surrogate on the bus".
 
-The stage's settings, :class:`~.servos.SurrogateServoConfig`, are with the bus's in
+The stage's settings, :class:`~..bus.servos.SurrogateServoConfig`, are with the bus's in
 :mod:`.servos` (Drake's YAML loader reads them there).
 """
 
@@ -48,7 +47,7 @@ import math
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from .servos import SPEED_MARGIN, SurrogateServoConfig
+from ..bus.servos import SPEED_MARGIN, SurrogateServoConfig
 
 
 def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the surrogate") -> None:
@@ -84,7 +83,7 @@ def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the su
 
 class SurrogateDrive:
     """The surrogate's position loop on the loop's computer (module docstring), for
-    :class:`~.station.DynamixelDriver`.
+    :class:`~..bus.station.DynamixelDriver`.
 
     Args:
         config: the stage. period_s: the control period, s.

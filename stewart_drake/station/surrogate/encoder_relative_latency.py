@@ -39,9 +39,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError
-from ..base.lag import signal_lag
-from ..base.signals import direction_words, principal_direction
+from ...base.errors import InvalidConfigError
+from ...base.lag import signal_lag
+from ...base.signals import direction_words, principal_direction
 
 #: The longest lag searched, s.
 MAX_LAG_S = 0.5

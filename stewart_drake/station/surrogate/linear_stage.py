@@ -1,7 +1,7 @@
 """A 1-DoF linear stage on paper: a catalogue servo turning a transmission (a toothed belt, a
 lead screw) that moves a carriage; the external surrogate's stage, one part for both of its
 controllers (the Diagram's axis, :mod:`stewart_drake.station.surrogate.stage`, and the servo
-bus's seventh servo, :mod:`stewart_drake.station.bus.surrogate_servo`).
+bus's seventh servo, :mod:`stewart_drake.station.surrogate.bus_servo`).
 
 :class:`LinearStage` holds what the part is: the servo, the carriage's travel per turn of the
 servo's horn, the stroke, the carriage's mass and the transmission's efficiency. What follows
@@ -25,9 +25,9 @@ Drake's YAML loader reads :class:`LinearStage`'s field annotations (a scenario's
 import math
 from dataclasses import dataclass
 
-from ..base.checks import as_number
-from ..base.errors import InvalidConfigError
-from .motor_catalogue import CatalogueMotor, catalogue_motor
+from ...base.checks import as_number
+from ...base.errors import InvalidConfigError
+from ...robot.motor_catalogue import CatalogueMotor, catalogue_motor
 
 #: The servo of the default stage (docs/motor_catalogue.md gives its datasheet's figures).
 DEFAULT_MOTOR = "XM430-W350-T"
@@ -54,7 +54,7 @@ class LinearStage:
     """The stage's mechanical part; SI units. Defaults: the cited belt stage (module docstring).
 
     Attributes:
-        motor: the servo, a key of :data:`~.motor_catalogue.MOTOR_CATALOGUE`.
+        motor: the servo, a key of :data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`.
         lead_m_per_rev: the carriage's travel per turn of the servo's horn, m (a belt: the
             pulley's teeth times the belt's pitch; a screw: its lead).
         travel_m: the carriage's whole stroke, m, centred on its zero (``s`` in
