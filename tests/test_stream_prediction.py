@@ -24,7 +24,7 @@ from stewart_drake.references.stream import PAST_NODES, Stream, follow, stream_o
 #: The settings these tests' figures are written for: 0.5 s of history (12 samples at 25 Hz),
 #: no hysteresis, the whole run's envelope (the shipped ones are the selection's choice: the
 #: mechanics tested here are the same under them).
-PLAIN = PredictorSettings(history_s=0.5, record_margin=0.0, envelope_s=None)
+PLAIN = PredictorSettings(history_s=0.5, record_margin=0.0, envelope_s=None, min_record_s=5.0)
 
 
 def _rms(e):
@@ -408,8 +408,12 @@ def test_the_settings_in_samples():
     assert PredictorSettings(history_s=0.64).lag_stride(0.01) == 1
     assert PredictorSettings(history_s=0.7).lag_stride(0.01) == 2  # 70: every second, 35
     assert PredictorSettings(history_s=0.7).lags(0.01) == 35
-    assert PredictorSettings(history_s=4.0).samples_needed(0.04, 5) == 2 * 50 + 5 + 125
-    assert s.samples_needed(0.04, 8) == 12 + 8 + 125
+    assert (
+        PredictorSettings(history_s=4.0, min_record_s=5.0).samples_needed(0.04, 5)
+        == 2 * 50 + 5 + 125
+    )
+    assert PredictorSettings(history_s=4.0).samples_needed(0.04, 5) == 2 * 50 + 5 + 50  # 2 s
+    assert s.samples_needed(0.04, 8) == 12 + 8 + 50  # the shipped 2 s of record
     assert replace(PLAIN, min_record_s=0.01).samples_needed(0.04, 8) == 12 + 8 + 1
     assert PredictorSettings(ridge=0.0).ridge == 0.0  # no ridge is allowed
     with pytest.raises(InvalidConfigError, match=r"ridge must be a finite number >= 0, got -1e-09"):

@@ -30,10 +30,12 @@ def _breathing_trace(path):
 def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, capsys):
     """0.2 s late: the robot, against the true motion, is within 0.6 of the error of the reference
     followed without prediction, and within 50 um of the followed reference itself; the report
-    says the latency assumed. Still millimetres from the motion: FAIL at the default 0.1 mm."""
+    says the latency assumed. A pure breath and drift is predicted to microns once the predictor
+    is used (from 7.3 s: its 4 s of history and 2 s of record), and the verdict's window starts
+    after the start-up (8.06 s): PASS at the default 0.1 mm, its largest axis within 10 um."""
     trace = _breathing_trace(tmp_path / "breath.csv")
     argv = ["reproduce", str(trace), "--stream", "0.2", "--out", str(tmp_path)]
-    out, _ = _run(capsys, argv, code=2)
+    out, _ = _run(capsys, argv, code=0)
     assert "streamed 0.2 s late at 10 Hz, predictor linear" in out
     report = json.loads((tmp_path / "reproduce_breath_stream.json").read_text())
     without = report["without"]["rms_translation_m"]
@@ -49,8 +51,9 @@ def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, caps
     assert "(b) the followed reference against the true motion" in out
     assert report["latency_s"] == 0.2 and report["predictor"] == "linear"
     assert (tmp_path / "reproduce_breath_stream.png").stat().st_size > 10_000
-    assert "FAIL: the robot's true pose against the true motion (breath), RMS error" in out
-    assert report["passed"] is False
+    assert "PASS: the robot's true pose against the true motion (breath), RMS error" in out
+    assert report["passed"] is True
+    assert max(report["against_true_motion"]["rms"][3:]) < 1e-5
     # The predictor's warm-up is inside the window, said so, with the figures after it beside.
     assert "is inside the window: its error counts in the figures" in out
     later = report["after_warm_up"]
@@ -62,7 +65,7 @@ def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, caps
     # in any name), with the same verdict.
     own = tmp_path / "reproduce_breath_stream_robot.md"
     assert own.exists() and f"the robot's fidelity against the true motion, {own.name})" in out
-    assert "**FAIL: the robot's true pose against the true motion (breath)" in own.read_text()
+    assert "**PASS: the robot's true pose against the true motion (breath)" in own.read_text()
     assert not [f.name for f in tmp_path.iterdir() if " " in f.name]
 
 

@@ -139,17 +139,17 @@ class PredictorSettings:
             the counts integers >= 1, ``mulin_order`` >= 0; ``bound_s`` None or > 0).
     """
 
-    # The defaults: history, the hysteresis, the envelope's window and the outliers (off) are
-    # the choice across sources, each left out in turn (docs/organ_motion.md, "Chosen across
-    # sources", organ_motion/stream_selection.py); memory and ridge the earlier tuning on the
-    # library's motions (memory 30-120 s within 0.005 of the mean ratio; a ridge of 1e-6 beat
-    # 1e-3 by 0.05); the bound and the shrinkage "Choosing the predictor"'s. The other models'
-    # settings were not tuned (one setting each, from their papers or ours).
+    # The defaults: history, the record needed before use, the hysteresis, the envelope's window and
+    # the outliers (off) are the choice across sources, each left out in turn (docs/organ_motion.md,
+    # "Chosen across sources", organ_motion/stream_selection.py); memory and ridge the earlier
+    # tuning on the library's motions (memory 30-120 s within 0.005 of the mean ratio; a ridge of
+    # 1e-6 beat 1e-3 by 0.05); the bound and the shrinkage "Choosing the predictor"'s. The other
+    # models' settings were not tuned (one setting each, from their papers or ours).
     history_s: float = 4.0
     memory_s: float = 30.0
     ridge: float = 1e-6
     record_s: float = 10.0
-    min_record_s: float = 5.0
+    min_record_s: float = 2.0
     gain_s: float = 30.0
     bound_s: float | None = 20.0
     envelope_s: float | None = 120.0
