@@ -115,9 +115,10 @@ def dominant_period(t, v) -> tuple[float, float]:
     if k == 0:
         return math.nan, 0.0
     share = float(np.sum(power[max(k - 16, 1) : k + 17]) / np.sum(power))
+    peak = float(k)
     if 0 < k < len(power) - 1:
-        k = k + parabolic_peak(*np.log(power[k - 1 : k + 2] + 1e-300))
-    return float(pad * dt / k), share
+        peak += parabolic_peak(*np.log(power[k - 1 : k + 2] + 1e-300))
+    return float(pad * dt / peak), share
 
 
 def direction_words(u) -> str:
