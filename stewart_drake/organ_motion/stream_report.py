@@ -175,7 +175,7 @@ def _plot_stream(figures: dict, name: str, tolerance: tuple[float, float], png: 
     x_with, x_none = followed.evaluate(t)[0], none.evaluate(t)[0]
     given = figures.get("given", followed)
     x_given = given.evaluate(t)[0]
-    fig, (a0, a1) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    fig, (a0, a1) = plt.subplots(2, 1, figsize=(13, 7), sharex=True, layout="constrained")
     zoom = t >= max(0.0, end - 20.0)
     a0.plot(t[zoom], x_true[zoom, axis] * scale, "k", lw=2, label="true motion")
     a0.plot(t[zoom], x_none[zoom, axis] * scale, color="tab:red", label="followed, no prediction")
@@ -196,7 +196,8 @@ def _plot_stream(figures: dict, name: str, tolerance: tuple[float, float], png: 
     fig.suptitle(
         "\n".join(textwrap.wrap(lines[0], 130)), fontsize=9, color="k" if ok else "tab:red"
     )
-    a0.legend(loc="upper right", fontsize=8)
+    # Beside the plots, not over the curves (which fill each plot's width).
+    a0.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     e_none = np.linalg.norm(x_none[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
     e_with = np.linalg.norm(x_with[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
     e_given = np.linalg.norm(x_given[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
@@ -211,8 +212,7 @@ def _plot_stream(figures: dict, name: str, tolerance: tuple[float, float], png: 
             f"{band['window_s']:g} s (held {band['coverage'] * 100:.0f} %)")  # fmt: skip
     a1.set_ylabel("translation error [mm]")
     a1.set_xlabel("t [s]")
-    a1.legend(loc="upper right", fontsize=8)
-    fig.tight_layout(rect=(0, 0, 1, 0.94))  # below the verdict's title
+    a1.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
     plt.close(fig)
     return ok, lines
