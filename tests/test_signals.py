@@ -153,3 +153,22 @@ def test_the_parabolic_peak_of_a_sampled_gaussian_refines_toward_its_true_peak()
 )
 def test_no_parabolic_peak_where_the_three_make_no_maximum(three):
     assert parabolic_peak(*three) == 0.0
+
+
+@pytest.mark.parametrize(("share", "periodic"), [(0.29, False), (0.31, True)])
+def test_a_motion_is_periodic_from_three_tenths_of_its_power_in_its_peak(share, periodic):
+    """Either side of the one threshold (PERIOD_POWER_SHARE, 0.3), read by the Kalman model's
+    period: a sine of 4 s beside three sines of equal amplitude a, every one a whole number of
+    cycles in the 100 s, so that the 4 s sine's share of the power is 1 / (1 + 3 a^2), set to
+    ``share`` by a."""
+    from stewart_drake.base.signals import PERIOD_POWER_SHARE, dominant_period
+    from stewart_drake.references.predictors import filter_period
+
+    assert PERIOD_POWER_SHARE == 0.3
+    t = 0.05 * np.arange(2000)
+    a = np.sqrt((1.0 / share - 1.0) / 3.0)
+    v = np.sin(2 * np.pi * t / 4.0) + a * sum(np.sin(2 * np.pi * t / p) for p in (2.0, 1.0, 0.5))
+    period, measured = dominant_period(t, v)
+    assert period == pytest.approx(4.0, rel=1e-5) and measured == pytest.approx(share, abs=2e-3)
+    found = filter_period(v, 0.05)
+    assert (found == pytest.approx(4.0, rel=1e-5)) if periodic else np.isnan(found)

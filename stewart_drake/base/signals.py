@@ -95,12 +95,18 @@ def centred(v) -> np.ndarray:
     return v - np.mean(v)
 
 
+#: A motion is periodic when the strongest peak of its spectrum holds at least this share of its
+#: power (:func:`dominant_period`): the measured verdict's period and the Kalman model's.
+PERIOD_POWER_SHARE = 0.3
+
+
 def dominant_period(t, v) -> tuple[float, float]:
     """(period s, share): the period of the strongest spectral peak of v (n,) at the even times
     t (n,) (:func:`centred`; a Hann window; the spectrum zero-padded 8 times and the peak
     refined by :func:`parabolic_peak` through the logarithms of its bins) and the share of the
-    motion's power within two bins of it (NaN, 0 for fewer than 8 samples or no motion). What
-    counts as periodic (the share needed, the periods looked for) is the caller's."""
+    motion's power within two bins of it (NaN, 0 for fewer than 8 samples or no motion). The
+    motion counts as periodic when the share is at least :data:`PERIOD_POWER_SHARE`; the periods
+    looked for are the caller's."""
     n = len(v)
     if n < 8:
         return math.nan, 0.0
@@ -132,6 +138,7 @@ def direction_words(u) -> str:
 
 
 __all__ = [
+    "PERIOD_POWER_SHARE",
     "principal_direction",
     "principal_displacement",
     "parabolic_peak",

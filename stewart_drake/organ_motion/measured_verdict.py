@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..base.signals import centred, dominant_period
+from ..base.signals import PERIOD_POWER_SHARE, centred, dominant_period
 from .fidelity import AXES, format_angle, format_length, format_window
 from .verdict_sensitivity import (
     MAX_TURN_RAD,
@@ -64,8 +64,6 @@ AT_REST_SHARE = 0.1
 FOLLOWS_CORRELATION = 0.5
 #: Two dominant periods differing by more than this share are told apart.
 PERIOD_SHARE = 0.05
-#: A dominant period is one whose spectral peak holds at least this share of the motion's power.
-PERIOD_POWER_SHARE = 0.3
 #: A latency found within this many seconds of the edge of the shifts searched is "at least".
 EDGE_S = 0.05
 
@@ -508,7 +506,6 @@ __all__ = [
     "AT_REST_SHARE",
     "FOLLOWS_CORRELATION",
     "PERIOD_SHARE",
-    "PERIOD_POWER_SHARE",
     "EDGE_S",
     "Judgement",
     "axis_figures",

@@ -17,15 +17,12 @@ import math
 
 import numpy as np
 
-from ..base.signals import dominant_period
+from ..base.signals import PERIOD_POWER_SHARE, dominant_period
 from .trace_cleaning import noise_estimate
 
 #: The periods :func:`filter_period` looks for, s: a heartbeat (0.5 s, 120 bpm) to a slow
 #: breath (12 s).
 PERIOD_RANGE_S = (0.5, 12.0)
-#: The least share of the motion's power its spectral peak must hold for the motion to count as
-#: periodic (that of the measured verdict's period too).
-MIN_PERIOD_SHARE = 0.3
 #: Harmonics at or above this fraction of the Nyquist frequency are left out of the model.
 NYQUIST_SHARE = 0.8
 
@@ -164,13 +161,14 @@ class MulinModel:
 def filter_period(x: np.ndarray, dt: float, period_range_s=PERIOD_RANGE_S) -> float:
     """The period the Kalman filter's model holds for the motion ``x`` (n,) sampled every
     ``dt`` s: its dominant period (:func:`~stewart_drake.base.signals.dominant_period`, the
-    strongest spectral peak) when that peak holds at least :data:`MIN_PERIOD_SHARE` of the
-    motion's power and lies in ``period_range_s`` (and within half the samples' span), s; NaN
-    when the motion shows no such period (at rest, noise, a drift)."""
+    strongest spectral peak) when the motion counts as periodic
+    (:data:`~stewart_drake.base.signals.PERIOD_POWER_SHARE`) and the period lies in
+    ``period_range_s`` (and within half the samples' span), s; NaN when the motion shows no
+    such period (at rest, noise, a drift)."""
     x = np.asarray(x, dtype=float)
     period, share = dominant_period(np.arange(x.size) * dt, x)
     top = min(period_range_s[1], 0.5 * x.size * dt)
-    if share >= MIN_PERIOD_SHARE and period_range_s[0] <= period <= top:
+    if share >= PERIOD_POWER_SHARE and period_range_s[0] <= period <= top:
         return float(period)
     return float("nan")
 
@@ -440,7 +438,6 @@ class RecurrentModel:
 
 __all__ = [
     "PERIOD_RANGE_S",
-    "MIN_PERIOD_SHARE",
     "NYQUIST_SHARE",
     "WaveletLMSModel",
     "MulinModel",
