@@ -67,7 +67,8 @@ def shift_scores(
     """
     from scipy.signal import correlate
 
-    grid, y_grid = uniform_columns(t, y, step_s)
+    weighted = np.flatnonzero(weights)
+    grid, y_grid = uniform_columns(t, np.asarray(y)[:, weighted], step_s)  # only those read
     m = len(grid)
     # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
     count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
@@ -75,8 +76,8 @@ def shift_scores(
     r_all = seen(grid[0] + shifts[0] + step_s * np.arange(m + count - 1))
     ones = np.ones(m)
     score = np.zeros(count)
-    for k in np.flatnonzero(weights):
-        ym = y_grid[:, k]
+    for j, k in enumerate(weighted):
+        ym = y_grid[:, j]
         r = r_all[:, k]
         centre = float(np.mean(r))  # both less one constant: the differences keep their digits
         ym, r = ym - centre, r - centre
