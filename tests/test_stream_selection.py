@@ -161,3 +161,183 @@ def test_one_measurement_beside_no_prediction():
         assert 0.25 < by["linear", lat]["rms_ratio"] < 0.35
         assert 0.85 < by["linear", lat]["used"] < 0.97 and by["linear", lat]["judged"]
         assert by["none", lat]["rms_ratio"] == 1.0 and by["none", lat]["used"] == 0.0
+
+
+def _table_rows():
+    """Two candidates on source A (two motions, 10 Hz in 0.1 mm steps) and B (one motion, as
+    sampled), a motion of B not judged, and the fallback's two runs; their figures chosen so
+    that every cell below is worked out by hand."""
+    rows = [
+        _row("A", "good", 0.2, 0.30, 0.90, "m1"), _row("A", "good", 0.2, 0.90, 1.00, "m2"),
+        _row("A", "good", 0.5, 0.40, 1.00, "m1"), _row("A", "good", 0.5, 0.52, 1.00, "m2"),
+        _row("B", "good", 0.2, 0.20, 0.80, "m1"), _row("B", "good", 0.5, 0.30, 1.00, "m1"),
+        _row("A", "bad", 0.2, 0.60, 1.20, "m1"), _row("A", "bad", 0.2, 0.60, 1.20, "m2"),
+        _row("A", "bad", 0.5, 0.70, 1.00, "m1"), _row("A", "bad", 0.5, 0.70, 1.00, "m2"),
+        _row("B", "bad", 0.2, 0.50, 1.00, "m1"), _row("B", "bad", 0.5, 0.60, 1.00, "m1"),
+        _row("B", "good", 0.2, 9.0, 9.0, "still", judged=False),
+        _row("B", "bad", 0.2, 9.0, 9.0, "still", judged=False),
+    ]  # fmt: skip
+    rows[0]["fallbacks"], rows[2]["fallbacks"] = 1, 5  # only 0.2 s's are counted
+    fallback = [_row("walk", "good", 0.2, 1.0, 1.02, "walk 1"), _row("walk", "good", 0.5, 1.031,
+                1.0, "walk 1")]  # fmt: skip
+    fallback[0]["fallbacks"] = 3
+    cases = (StreamCase("m1", "breathing"), StreamCase("m2", "breathing"))
+    srcs = [Source("A", cases, StreamForm(rate_hz=10.0, quantum_m=1e-4)), Source("B", cases[:1])]
+    return rows, fallback, srcs
+
+
+def test_the_verdicts_say_what_the_rows_hold():
+    """Per source left out, the candidate chosen on the other and each goal's figure (A: good
+    chosen on B, as bad's peak on A is 1.2; A's means 0.60 and 0.46, its largest 0.90); then
+    the fallback's largest ratio, 1.031 above 1.03."""
+    rows, fallback, _ = _table_rows()
+    assert sel.verdicts(rows, fallback) == [
+        "A left out, good chosen on the others: 0.2 s, mean RMS ratio 0.60 (goal <= 0.45): "
+        "MISSED; 0.2 s, largest RMS ratio 0.90 (goal <= 0.8): MISSED; 0.2 s, largest peak "
+        "ratio 1.00 (goal <= 1.05): met; 0.5 s, mean RMS ratio 0.46 (goal <= 0.6): met",
+        "B left out, good chosen on the others: 0.2 s, mean RMS ratio 0.20 (goal <= 0.45): "
+        "met; 0.2 s, largest RMS ratio 0.20 (goal <= 0.8): met; 0.2 s, largest peak ratio 0.80 "
+        "(goal <= 1.05): met; 0.5 s, mean RMS ratio 0.30 (goal <= 0.6): met",
+        "where prediction cannot pay (2 runs): the largest RMS or peak ratio 1.031 "
+        "(goal <= 1.03): MISSED",
+    ]
+    assert sel.fallback_checks(fallback) == [
+        ("walk", "walk 1", 0.2, 1.0, 1.02, 3, True),
+        ("walk", "walk 1", 0.5, 1.031, 1.0, 0, False),
+    ]
+    assert sel.verdicts(rows)[-1].startswith("B left out")  # no fallback: no line for it
+
+
+def test_the_tables_say_what_the_rows_hold(tmp_path):
+    """Every cell worked out by hand: the sources left out (motions and form, the choice,
+    mean (range) of each figure, 0.2 s's fallbacks, the goals missed), every candidate on every
+    source with its score on all (good: the mean of 0.60, 0.46, 0.20, 0.30; bad: of 0.60, 0.70,
+    0.50, 0.60), the motion not judged once, the fallback's runs; written between the markers
+    with what is around them kept."""
+    rows, fallback, srcs = _table_rows()
+    lines = sel.tables(rows, srcs, fallback)
+    text = "\n".join(lines)
+    assert lines[0] == "### The predictor chosen across sources, judged on the source left out"
+    assert "at 0.2 s, mean <= 0.45, none above 0.8, peak within 1.05; at 0.5 s, mean <= 0.6" in (
+        text
+    )
+    assert "within 1.05 on every motion at 0.2 s" in text
+    assert "The shipped choice, on every source: **good**." in text
+    for line in (
+        "| source left out | motions, form | chosen on the others | RMS ratio, 0.2 s | peak "
+        "ratio, 0.2 s | RMS ratio, 0.5 s | fallbacks | verdict |",
+        "| A | 2, 10 Hz, 0.1 mm steps | good | 0.60 (0.30-0.90) | 0.95 (0.90-1.00) | 0.46 "
+        "(0.40-0.52) | 1 | MISSED: 0.2 s, mean RMS ratio 0.60 > 0.45; 0.2 s, largest RMS ratio "
+        "0.90 > 0.8 |",
+        "| B | 1, as sampled | good | 0.20 (0.20-0.20) | 0.80 (0.80-0.80) | 0.30 (0.30-0.30) | 0 "
+        "| met |",
+        "#### Every candidate on every source at 0.2 s: mean RMS ratio / largest peak ratio",
+        "| candidate | A | B | score on all (mean / peak) |",
+        "| good | 0.60 / 1.00 | 0.20 / 0.80 | 0.390 / 1.00 |",
+        "| bad | 0.60 / 1.20 | 0.50 / 1.00 | 0.600 / 1.20 |",
+        "#### Where prediction cannot pay: good, beside no prediction",
+        "| source | motion | latency | RMS ratio | peak ratio | fallbacks | verdict |",
+        "| walk | walk 1 | 0.2 s | 1.000 | 1.020 | 3 | met |",
+        "| walk | walk 1 | 0.5 s | 1.031 | 1.000 | 0 | MISSED |",
+    ):
+        assert line in lines, line
+    assert text.count("still (B, 0.2 s)") == 1 and "Not judged" in text
+    assert "RMS and peak ratio <= 1.03." in text
+    assert "Not judged" not in "\n".join(sel.tables([r for r in rows if r["judged"]], srcs))
+    doc = tmp_path / "study.md"
+    doc.write_text("before\n" + "\n".join(sel.TABLE_MARKERS) + "\nafter\n")
+    assert sel.write_tables(doc, rows, srcs, fallback) == doc
+    written = doc.read_text()
+    assert written.startswith("before\n" + sel.TABLE_MARKERS[0]) and written.endswith(
+        sel.TABLE_MARKERS[1] + "\nafter\n"
+    )
+    assert "\n".join(lines) in written
+
+
+def test_the_sources_hold_the_motions_and_forms_the_docs_name():
+    """Each source's form in the words the table prints, and drawn from its own seed; the forms
+    laid on the five breathing motions named; the irregular source's motions those of their
+    labels' seed and variation (built here from the library by name); the library's 11."""
+    from stewart_drake.organ_motion.stream_study import case_reference
+
+    by = {s.name: s for s in sources(None)}
+    assert list(by) == [
+        "library", "10 Hz", "10 Hz, 0.1 mm steps", "0.3 mm noise", "1 % outliers",
+        "5 % dropouts", "irregular", "drifting",
+    ]  # fmt: skip
+    assert len(by["library"].cases) == 11 and all(c.tuned_on for c in by["library"].cases)
+    words = {name: s.form.words() for name, s in by.items()}
+    assert words == {
+        "library": "as sampled", "10 Hz": "10 Hz", "10 Hz, 0.1 mm steps": "10 Hz, 0.1 mm steps",
+        "0.3 mm noise": "25 Hz, 0.3 mm noise", "1 % outliers": "25 Hz, 1 % outliers of 3 mm",
+        "5 % dropouts": "25 Hz, 5 % dropouts", "irregular": "as sampled",
+        "drifting": "as sampled",
+    }  # fmt: skip
+    drawn = [by[n].form.seed for n in list(by)[2:6]]
+    assert len(set(drawn)) == 4  # the forms that draw, each its own draws
+    for name in list(by)[1:6]:
+        assert [c.label for c in by[name].cases] == [
+            "breathing", "irregular breathing", "breathing 4.2 s + heartbeat", "sharkfin",
+            "hysteresis",
+        ]  # fmt: skip
+    t = np.arange(0.0, 60.0, 0.05)
+    for case in by["irregular"].cases:
+        p = dict(case.parameters)
+        assert case.label == f"irregular breathing, seed {p['seed']}, cv {p['amplitude_cv']}"
+        assert p["amplitude_cv"] == p["period_cv"] and 0.2 <= float(p["period_cv"]) <= 0.3
+        expected = make_motion("irregular_breathing", p).evaluate(t)[0]
+        np.testing.assert_array_equal(case_reference(case).evaluate(t)[0], expected)
+    seeds = [dict(c.parameters)["seed"] for c in by["irregular"].cases]
+    assert len(set(seeds)) == 4 and "3" not in seeds  # other seeds than the forms' base
+
+
+def _cycle_means(case, period_s, step_s=0.01):
+    """X's mean over each whole period of the breathing, mm, from 0 s: its baseline."""
+    from stewart_drake.organ_motion.stream_study import case_reference
+
+    x = np.asarray(case_reference(case).evaluate(np.arange(0.0, 120.0, step_s))[0])[:, 3]
+    n = int(round(period_s / step_s))
+    return 1e3 * x[: x.size // n * n].reshape(-1, n).mean(axis=1)
+
+
+def test_the_drifting_motions_drift_as_their_labels_say():
+    """The baseline (X's mean over each breath): 5 mm away by 60 s and held; 3 mm back and forth
+    with a period of 40 s; -4 mm by 90 s under breathing of 3.2 s. Read from the motion."""
+    cases = {c.label: c for c in next(s for s in sources(None) if s.name == "drifting").cases}
+    assert list(cases) == [
+        "breathing, 5 mm drift over 60 s",
+        "breathing, 3 mm drift back and forth every 40 s",
+        "breathing 3.2 s, -4 mm drift over 90 s",
+    ]
+    five = _cycle_means(cases["breathing, 5 mm drift over 60 s"], 4.0)  # 30 breaths of 4 s
+    assert five[15] - five[0] == pytest.approx(5.0, abs=0.3)  # 60-64 s
+    assert np.ptp(five[16:]) < 0.05  # held after
+    assert five[7] - five[0] == pytest.approx(2.5, abs=0.4)  # half-way at 28-32 s
+    back = _cycle_means(cases["breathing, 3 mm drift back and forth every 40 s"], 4.0)
+    assert np.ptp(back) == pytest.approx(3.0, abs=0.3)
+    np.testing.assert_allclose(back[10:20], back[:10], rtol=0, atol=0.05)  # 40 s later
+    assert np.ptp(back[:5]) > 2.0  # back and forth within 40 s, not a slower drift
+    four = _cycle_means(cases["breathing 3.2 s, -4 mm drift over 90 s"], 3.2)
+    assert four[29] - four[0] == pytest.approx(-4.0, abs=0.3)  # 92.8-96 s
+    assert np.ptp(four[30:]) < 0.05 and four[14] - four[0] == pytest.approx(-2.0, abs=0.4)
+
+
+def test_the_motions_where_prediction_cannot_pay_are_named_and_seeded():
+    """Three random walks of their own seeds at 25 Hz, each 120 s from home; breathing with
+    10 % of its samples 10 mm off, drawn from a seed of its own."""
+    from stewart_drake.robot.geometry import X_HOME
+
+    walks, outliers = hurting()
+    assert [c.label for c in walks.cases] == [f"random walk, seed {s}" for s in (1, 2, 3)]
+    assert walks.form.words() == "25 Hz" and outliers.form.words() == (
+        "25 Hz, 10 % outliers of 10 mm"
+    )
+    assert [c.label for c in outliers.cases] == ["breathing"] and outliers.form.seed != 0
+    t = np.arange(0.0, 120.0, 0.5)
+    made = [np.asarray(c.made_by().evaluate(t)[0]) for c in walks.cases]
+    np.testing.assert_array_equal(made[0], np.asarray(random_walk(1).evaluate(t)[0]))
+    assert np.abs(made[0] - made[1]).max() > 1e-3 and np.abs(made[1] - made[2]).max() > 1e-3
+    walk = random_walk(4)
+    assert walk.name == "random walk 4" and walk.end_time == pytest.approx(120.0, abs=1e-9)
+    np.testing.assert_array_equal(walk.evaluate(0.0)[0], np.asarray(X_HOME, dtype=float))
+    assert random_walk(4, 30.0).end_time == pytest.approx(30.0, abs=1e-9)
