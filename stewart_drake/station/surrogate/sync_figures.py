@@ -106,7 +106,9 @@ def lead_s(t, internal, external, max_s: float = 2.0) -> float:
     external(t), standardised, comes nearest the internal(t + tau), standardised (the one lag
     search, :func:`~stewart_drake.base.lag.best_shift`, a constant offset removed: for two
     standardised signals the mean squared distance is 2 (1 - Pearson's correlation), so the
-    nearest shift is the most correlated), searched for the external and for its opposite, the
+    nearest shift is the most correlated; approximately here, the internal being standardised
+    over the whole record and the external over the window), searched for the external and
+    for its opposite (one search each: the nearest of each sign), the
     smaller in magnitude of the two taken (so that a pair whose axes point opposite ways, a
     tumour moving inferior as the chest rises, is not read half a breath off); over a window
     fixed for every tau (the record less max_s at each end; the internal linearly
