@@ -161,6 +161,37 @@ def test_one_measurement_beside_no_prediction():
         assert 0.25 < by["linear", lat]["rms_ratio"] < 0.35
         assert 0.85 < by["linear", lat]["used"] < 0.97 and by["linear", lat]["judged"]
         assert by["none", lat]["rms_ratio"] == 1.0 and by["none", lat]["used"] == 0.0
+        assert 0.2 < by["linear", lat]["peak_ratio"] <= 1.0 and by["none", lat]["peak_ratio"] == 1.0
+        r = by["linear", lat]
+        assert (r["source"], r["case"], r["fallbacks"], r["rejected"]) == (
+            "test",
+            "breathing",
+            0,
+            0,
+        )
+    assert len(rows) == 4
+    # Taking the outliers out (outlier_k) counts what it rejected: on breathing with 1 % of its
+    # samples 3 mm off, about 1 % of 3000 samples' 3 axes each way.
+    glitched = Source(
+        "glitched", source.cases, StreamForm(rate_hz=25.0, outlier_share=0.01, seed=3)
+    )
+    settings = sel.PredictorSettings(outlier_k=4.0)
+    rows = sel.measure([glitched], (sel.Candidate("taken out", "linear", settings),), (0.2,))
+    assert 40 <= rows[0]["rejected"] <= 3 * 60
+
+
+def test_a_motion_at_rest_is_measured_unjudged_and_unused():
+    """A still motion: no prediction's error is 0, so the ratios are NaN, nothing moves after
+    the warm-up (not judged) and no axis moves (used 0)."""
+    from stewart_drake.references.samples import CubicSplineTrajectory
+
+    still = CubicSplineTrajectory(np.array([0.0, 60.0]), np.tile([0, 0, 0, 0, 0, 0.3], (2, 1)))
+    source = Source(
+        "still", (StreamCase("still", made_by=lambda: still),), StreamForm(rate_hz=25.0)
+    )
+    (row,) = sel.measure([source], (sel.Candidate("linear", "linear"),), (0.2,))
+    assert np.isnan(row["rms_ratio"]) and np.isnan(row["peak_ratio"])
+    assert row["used"] == 0.0 and not row["judged"]
 
 
 def _table_rows():

@@ -142,9 +142,9 @@ def moves_after_warm_up(x_true, t, stream) -> bool:
     may first be used on ``stream`` (the shipped settings' history, steps ahead and record,
     :meth:`~stewart_drake.references.prediction.PredictorSettings.samples_needed`): its
     translation's largest span over that stretch at least :data:`MOVING_SHARE` of its span
-    over the whole run. A motion that moves only before then (the library's persistent
-    excursion, done in 5 s) is the same with any predictor and none: its ratio says nothing of
-    prediction, and it is reported, not judged."""
+    over the whole run (a motion that never moves does not). A motion that moves only before
+    then (the library's persistent excursion, done in 5 s) is the same with any predictor and
+    none: its ratio says nothing of prediction, and it is reported, not judged."""
     from ..references.stream import LOOP_LAG_S, follower_steps
 
     dt = stream.dt
@@ -152,7 +152,9 @@ def moves_after_warm_up(x_true, t, stream) -> bool:
     start = PredictorSettings().samples_needed(dt, steps) * dt + stream.latency_s
     after = np.asarray(t) >= start
     whole = np.ptp(x_true[:, 3:], axis=0).max()
-    return bool(after.any() and np.ptp(x_true[after, 3:], axis=0).max() >= MOVING_SHARE * whole)
+    if whole <= 0 or not after.any():
+        return False
+    return bool(np.ptp(x_true[after, 3:], axis=0).max() >= MOVING_SHARE * whole)
 
 
 def _ratio(f: dict, none: dict, key: str) -> float:
@@ -201,13 +203,12 @@ def choose(rows, exclude=None) -> str:
 
 
 def source_figures(rows, source: str, candidate: str) -> dict:
-    """{latency: {"n", "rms" (n,), "peak" (n,), "fallbacks" (n,)}} of ``candidate`` on
-    ``source``."""
+    """{latency: {"rms" (n,), "peak" (n,), "fallbacks" (n,)}} of ``candidate`` on ``source``'s
+    n judged motions."""
     out = {}
     for lat in LATENCIES:
         sel = _pick(rows, source=source, candidate=candidate, latency=lat)
         out[lat] = {
-            "n": len(sel),
             "rms": np.array([r["rms_ratio"] for r in sel], dtype=float),
             "peak": np.array([r["peak_ratio"] for r in sel], dtype=float),
             "fallbacks": np.array([r["fallbacks"] for r in sel], dtype=int),
