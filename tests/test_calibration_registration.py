@@ -455,6 +455,12 @@ def _two_points():
     return "\n".join(_GOOD_BASE.splitlines()[:3]) + "\n"
 
 
+#: A file of frames fitted to a registration motion, good.
+_FRAMES = (
+    "motion_frames:\n  tracker_base: {rpy_rad: [0, 0, 0], xyz_m: [1, 0, 0]}\n"
+    "  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n  rms_m: 1.0e-5\n"
+)
+
 HOSTILE = {
     "two points": (_two_points(), "base_points: 2 points: a frame needs at least 3"),
     "collinear": (
@@ -563,6 +569,43 @@ HOSTILE = {
         "  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n  rms_m: 0.5\n",
         r"motion_frames.rms_m: expected a finite number in \[0, 0.005\] m",
     ),
+    "motion frame turned 7 rad": (
+        _FRAMES.replace("tracker_base: {rpy_rad: [0, 0, 0]", "tracker_base: {rpy_rad: [0, 0, 7]"),
+        r"motion_frames.tracker_base.rpy_rad\[2\]: expected a finite number in \[-6.28319, "
+        r"6.28319\] rad, got '7'",
+    ),
+    "motion frame 200 m away": (
+        _FRAMES.replace("xyz_m: [0, 0, 0]", "xyz_m: [0, 0, 200]"),
+        r"motion_frames.platform_marker.xyz_m\[2\]: expected a finite number in \[-100, 100\] m",
+    ),
+    "motion frame rotation sigma": (
+        _FRAMES.replace("xyz_m: [1, 0, 0]}", "xyz_m: [1, 0, 0], rotation_sigma_rad: 0.5}"),
+        r"motion_frames.tracker_base.rotation_sigma_rad: expected a finite number in \[0, 0.01\] "
+        r"rad, got '0.5'",
+    ),
+    "motion frame translation sigma": (
+        _FRAMES.replace("xyz_m: [0, 0, 0]}", "xyz_m: [0, 0, 0], translation_sigma_m: 0.01}"),
+        r"motion_frames.platform_marker.translation_sigma_m: expected a finite number in \[0, "
+        r"0.001\] m, got '0.01'",
+    ),
+    "motion frame missing": (
+        _FRAMES.replace("  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n", ""),
+        r"motion_frames: missing platform_marker; write motion_frames: \{tracker_base: .* as "
+        r"verify --save-registration writes it",
+    ),
+    "motion frame without its pose": (
+        _FRAMES.replace("{rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}", "{xyz_m: [0, 0, 0]}"),
+        r"motion_frames.platform_marker: missing rpy_rad; write motion_frames:",
+    ),
+    "motion frame unknown key": (
+        _FRAMES.replace("tracker_base: {rpy_rad:", "tracker_base: {rpy:"),
+        r"motion_frames.tracker_base: unknown key 'rpy' \(known: rpy_rad, xyz_m, "
+        r"rotation_sigma_rad, translation_sigma_m\)",
+    ),
+    "motion frames source a list": (
+        _FRAMES + "  source: [1, 2]\n",
+        "motion_frames.source: expected a text of at most 1000 characters",
+    ),
     "motion frames beside points": (
         _GOOD_BASE + "motion_frames:\n  tracker_base: {rpy_rad: [0, 0, 0], xyz_m: [1, 0, 0]}\n"
         "  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n  rms_m: 1.0e-5\n",
@@ -606,6 +649,31 @@ def test_a_hostile_registration_file_is_refused_in_one_line_naming_the_field(tmp
     with pytest.raises(InvalidConfigError, match=message) as err:
         rf.read_registration(path)
     assert "\n" not in str(err.value) and str(path) in str(err.value)
+
+
+def test_frames_fitted_to_a_motion_are_read_as_written(tmp_path):
+    """motion_frames_yaml's file read back: the frames (to the digits YAML keeps), each
+    sigma squared on its covariance's diagonal (rotation then translation), the fit's RMS,
+    and its source in words (or that none was given); without the sigmas, zero covariance."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    X_TB = RigidTransform(RollPitchYaw(0.1, -0.2, 0.3), [1.0, -0.5, 0.25])
+    X_PM = RigidTransform(RollPitchYaw(-0.05, 0.0, 0.02), [0.01, 0.02, 0.03])
+    text = rf.motion_frames_yaml(X_TB, X_PM, (1e-3, 2e-4), (3e-3, 4e-4), 5e-5, "a run")
+    (tmp_path / "reg.yaml").write_text(text)
+    reg = rf.read_registration(tmp_path / "reg.yaml")
+    np.testing.assert_allclose(reg.X_TB.GetAsMatrix4(), X_TB.GetAsMatrix4(), atol=1e-12)
+    np.testing.assert_allclose(reg.X_PM.GetAsMatrix4(), X_PM.GetAsMatrix4(), atol=1e-12)
+    np.testing.assert_allclose(np.diag(reg.cov_B), [1e-6] * 3 + [4e-8] * 3, rtol=1e-12)
+    np.testing.assert_allclose(np.diag(reg.cov_M), [9e-6] * 3 + [1.6e-7] * 3, rtol=1e-12)
+    assert not np.any(reg.cov_B - np.diag(np.diag(reg.cov_B)))
+    assert reg.rms_base_m == 5e-5 and reg.rms_platform_m == 0.0
+    assert reg.source == "fitted to a registration motion (a run)"
+    (tmp_path / "bare.yaml").write_text(_FRAMES)
+    bare = rf.read_registration(tmp_path / "bare.yaml")
+    assert bare.source == "fitted to a registration motion (no source given)"
+    assert not bare.cov_B.any() and not bare.cov_M.any() and bare.rms_base_m == 1e-5
+    np.testing.assert_allclose(bare.X_TB.translation(), [1, 0, 0], atol=0)
 
 
 def test_the_good_files_of_the_hostile_cases_are_read(tmp_path):

@@ -72,6 +72,12 @@ REGISTRATION_REMEDY = (
     "platform_points: {marker_in_tracker: {rpy_rad: [...], xyz_m: [...]}, points: [...]} "
     "(docs/calibration.md, Registration)"
 )
+#: What to write when a field of the frames fitted to a registration motion is missing.
+MOTION_FRAMES_REMEDY = (
+    "write motion_frames: {tracker_base: {rpy_rad: [...], xyz_m: [...]}, platform_marker: "
+    "{rpy_rad: [...], xyz_m: [...]}, rms_m: ...} as verify --save-registration writes it "
+    "(docs/calibration.md, Registration)"
+)
 
 
 #: The tags a plain number resolves to (PyYAML reads 1e-6, without a point, as text); any
@@ -108,7 +114,9 @@ class _Nodes:
             out[name] = value
         missing = [k for k in required if k not in out]
         if missing:
-            raise self.refuse(field, f"missing {', '.join(missing)}; {REGISTRATION_REMEDY}")
+            frames = field.split(".")[0] == MOTION_FRAMES
+            remedy = MOTION_FRAMES_REMEDY if frames else REGISTRATION_REMEDY
+            raise self.refuse(field, f"missing {', '.join(missing)}; {remedy}")
         return out
 
     def sequence(self, node, field: str) -> list:
