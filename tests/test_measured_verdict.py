@@ -900,3 +900,50 @@ def test_the_frames_that_keep_offsets_judge_them_and_a_lever_is_named():
     ]
     assert math.isnan(j.sensitivity["tilt_rad"]) is False
     assert j.sensitivity["tilt_rad"] == pytest.approx(1e-4 / np.sqrt(0.3**2 + 0.01**2), rel=1e-3)
+
+
+def _unseen_motion(phi_rms, x_rms, y_rms):
+    """(400, 6) a reference moving phi, X and Y by these RMS about its mean (whole sine cycles)
+    and Z by 5 mm, which the checks below do not measure."""
+    t = np.linspace(0.0, 1.0, 400, endpoint=False)
+    s, c = np.sqrt(2) * np.sin(2 * np.pi * t), np.sqrt(2) * np.cos(2 * np.pi * t)
+    x = np.zeros((400, 6))
+    x[:, 0], x[:, 3], x[:, 4] = phi_rms * s, x_rms * s, y_rms * c
+    x[:, 5] = 0.3 + 5e-3 * s
+    return x
+
+
+def test_a_motion_within_the_tolerance_on_every_axis_measured_cannot_be_judged():
+    """The phantom at rest errs by the reference's RMS about its mean: within the tolerance
+    on every measured axis (phi 0.5 mrad of 1, X 50 um and Y 80 um of 0.1 mm; Z's 5 mm not
+    measured), the line says so, naming each axis's RMS and the axis nearest its tolerance (Y,
+    0.8 of it; phi when it is 0.95 of its own)."""
+    from stewart_drake.organ_motion.verdict_sensitivity import motion_unseen
+
+    measured = [True, False, False, True, True, False]
+    words = motion_unseen(_unseen_motion(5e-4, 5e-5, 8e-5), measured, (1e-4, 1e-3))
+    assert words == (
+        "cannot judge: the phantom at rest would pass too (the reference moves phi 500 urad, "
+        "X 50 um, Y 80 um RMS on the axes measured, each within the tolerance): judge at a "
+        "tolerance below Y's 80 um, or on a larger motion"
+    )
+    words = motion_unseen(_unseen_motion(9.5e-4, 5e-5, 8e-5), measured, (1e-4, 1e-3))
+    assert words.endswith("judge at a tolerance below phi's 950 urad, or on a larger motion")
+    # One measured axis beyond its tolerance: the check can tell the motion from none.
+    assert motion_unseen(_unseen_motion(5e-4, 1.1e-4, 8e-5), measured, (1e-4, 1e-3)) == ""
+    assert motion_unseen(_unseen_motion(1.1e-3, 5e-5, 8e-5), measured, (1e-4, 1e-3)) == ""
+    # Z measured too (5 mm): it can; no axis measured: nothing to say.
+    assert motion_unseen(_unseen_motion(5e-4, 5e-5, 8e-5), [True] * 6, (1e-4, 1e-3)) == ""
+    assert motion_unseen(_unseen_motion(5e-4, 5e-5, 8e-5), [False] * 6, (1e-4, 1e-3)) == ""
+
+
+def test_a_motion_exactly_at_the_tolerance_cannot_be_judged():
+    """At rest the phantom errs by exactly the tolerance (X alternating +-2^-13 m about 0, its
+    RMS 2^-13 m to the bit, the tolerance the same): within it, so it would pass."""
+    from stewart_drake.organ_motion.verdict_sensitivity import motion_unseen
+
+    x = np.zeros((400, 6))
+    x[:, 3] = 2.0**-13 * np.tile([1.0, -1.0], 200)
+    assert np.std(x[:, 3]) == 2.0**-13
+    words = motion_unseen(x, [False, False, False, True, False, False], (2.0**-13, 1e-3))
+    assert words.startswith("cannot judge") and "below X's 0.122 mm" in words
