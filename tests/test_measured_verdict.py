@@ -947,3 +947,37 @@ def test_a_motion_exactly_at_the_tolerance_cannot_be_judged():
     assert np.std(x[:, 3]) == 2.0**-13
     words = motion_unseen(x, [False, False, False, True, False, False], (2.0**-13, 1e-3))
     assert words.startswith("cannot judge") and "below X's 0.122 mm" in words
+
+
+def test_the_sensitivity_counts_an_axis_by_its_own_thresholds():
+    """Which axis the scale is shown on and whether a tilt is seen, at each threshold's edge:
+    of two axes moving alike the first is named (a tie keeps it); an axis whose span is exactly
+    its moving threshold (MOVING_P2P) does not move; X counts a tilt by the translations' least
+    effect (1 um per rad), not the rotations': a tilt about Z moves X by -Y, whose RMS is set
+    either side of it (0.9 and 1.1 um), and with a tolerance of 0.1 um the tilt is then seen
+    from 0.1 / 1.1 rad."""
+    from stewart_drake.organ_motion.fidelity import MOVING_P2P
+    from stewart_drake.organ_motion.verdict_sensitivity import sensitivity
+
+    t = np.linspace(0.0, 1.0, 400, endpoint=False)
+    x = np.zeros((400, 6))
+    x[:, 3] = x[:, 4] = 1e-3 * np.sin(2 * np.pi * t)
+    x[:, 5] = 0.3
+    both = [False, False, False, True, True, False]
+    assert sensitivity(t, x, both, (1e-4, 1e-3), True)["amplitude_axis"] == "X"
+    edge = x.copy()
+    edge[:, 3] = MOVING_P2P[3] / 2 * np.tile([1.0, -1.0], 200)
+    assert np.ptp(edge[:, 3]) == MOVING_P2P[3]
+    s = sensitivity(t, edge, [False, False, False, True, False, False], (1e-4, 1e-3), True)
+    assert s["amplitude_axis"] == "" and math.isnan(s["amplitude_fraction"])
+    only_x = [False, False, False, True, False, False]
+    for y_rms, seen in ((0.9e-6, False), (1.1e-6, True)):
+        tilted = np.zeros((400, 6))
+        tilted[:, 4] = y_rms * np.sqrt(2) * np.sin(2 * np.pi * t)
+        tilted[:, 5] = 0.3
+        s = sensitivity(t, tilted, only_x, (1e-7, 1e-3), True)
+        if seen:
+            assert s["tilt_rad"] == pytest.approx(1e-7 / 1.1e-6, rel=1e-9)
+            assert (s["tilt_about"], s["tilt_axis"]) == ("Z", "X")
+        else:
+            assert math.isnan(s["tilt_rad"]) and s["tilt_axis"] == ""
