@@ -38,7 +38,9 @@ def _record_written_out(predicted, y, warm, min_n, mu, margin=0.0):
     at sample i. Returns (using (N, m), sigma (N, K, m)): the model chosen where it has
     ``min_n`` residuals k = K ahead and its summed weighted squares are below the held
     sample's, times 1 - ``margin`` where it was not chosen at the sample before (the
-    hysteresis); sigma the weighted RMS residual of what is chosen (NaN before any)."""
+    hysteresis), or not above them where the held sample's weighted mean square over the steps
+    ahead is within (1 um)^2 (at rest); sigma the weighted RMS residual of what is chosen (NaN
+    before any)."""
     N, K, m = predicted.shape
     r2 = np.zeros((2, N, K, m))
     ready = np.zeros((N, K))
@@ -56,7 +58,9 @@ def _record_written_out(predicted, y, warm, min_n, mu, margin=0.0):
     using = np.zeros(model.shape, dtype=bool)
     for j in range(N):
         before = using[j - 1] if j else np.zeros(model.shape[1], dtype=bool)
-        using[j] = (count[j] >= min_n) & (model[j] < np.where(before, 1.0, 1.0 - margin) * none[j])
+        better = model[j] < np.where(before, 1.0, 1.0 - margin) * none[j]
+        at_rest = (none[j] <= 1e-12 * w[j].sum()) & (model[j] <= none[j])
+        using[j] = (count[j] >= min_n) & (better | at_rest)
     with np.errstate(invalid="ignore"):
         mse = se / w[None, :, :, None]
     return using, np.sqrt(np.where(using[:, None, :], mse[0], mse[1]))
@@ -310,9 +314,10 @@ def test_the_record_chooses_and_measures_as_its_weighted_sums_say(
     to the range so far plus a tenth, on the axes where its record is better; the newest sample
     on the others), which axes use it, and sigma, the weighted RMS residual of what is used,
     equal the record written out as sums (not the predictor's recursion). Axes: a model better
-    than holding the newest sample, one worse by a bias, one at rest (equal records: the sample
-    held), one whose predictions overshoot and are clipped. The record starts once the model's
-    first pairs are complete (history 2 samples + K), and the model is chosen only after
+    than holding the newest sample, one worse by a bias, one at rest (equal records of zero:
+    taken up, it moves nothing), one whose predictions overshoot and are clipped. The record
+    starts once the model's first pairs are complete (history 2 samples + K), and the model is
+    chosen only after
     min_record_s of residuals K ahead (1, 10 or 5 samples). K = 1 is the fewest steps ahead.
     With a hysteresis (``record_margin``) the model is taken up only once its record beats the
     held sample's by that share, and dropped (a fallback, counted) as soon as it does not beat
@@ -352,10 +357,34 @@ def test_the_record_chooses_and_measures_as_its_weighted_sums_say(
     assert predictor.clipped == moved > 0
     assert predictor.fallbacks == int(np.count_nonzero(using[:-1] & ~using[1:]))
     first = int(np.argmax(using[:, 0]))  # when the better model is first chosen
-    assert using[-1].tolist() == [True, False, False, False]
+    assert using[-1].tolist() == [True, False, True, False]
     if margin == 0.0:
         assert first == 2 + 2 * K - 1 + min_n
     assert np.isnan(sigma[2 + K]).all() and np.isfinite(sigma[2 + K + 1, 0]).all()
+
+
+@pytest.mark.parametrize(("rms", "taken_up"), [(0.9e-6, True), (1.1e-6, False)])
+def test_a_model_that_ties_with_no_prediction_is_taken_up_only_at_rest(rms, taken_up):
+    """A model whose predictions are exactly no prediction's (the newest sample held) on a
+    motion of tiny steps: taken up where no prediction's RMS residual is within 1 um (at rest,
+    where it moves nothing and is in use when the motion starts), not where it is above, with
+    or without the hysteresis. The residual of the held sample k ahead is k times the step, so
+    the step is set for the record's RMS over k = 1..K (weights equal once the record is
+    long) to be ``rms``."""
+    dt, K, N = 0.1, 3, 200
+    step = rms / np.sqrt(np.mean(np.arange(1, K + 1) ** 2))
+    y = (step * np.arange(N))[:, None]
+    for margin in (0.0, 0.1):
+        settings = PredictorSettings(
+            history_s=0.2, record_s=2.0, min_record_s=0.5, shrink=False, bound_s=None,
+            envelope_s=None, record_margin=margin,
+        )  # fmt: skip
+        predictor = OnlinePredictor("linear", dt, K, 1, settings)
+        predictor.model = _Scripted(np.repeat(y[:, None, :], K, axis=1))
+        for v in y:
+            predictor.update(v)
+        assert bool(predictor.using[0]) is taken_up
+        assert predictor.sigma[:, 0] == pytest.approx(step * np.arange(1, K + 1), rel=1e-9)
 
 
 def test_no_prediction_holds_the_newest_sample_with_its_record_from_the_start():
@@ -493,7 +522,9 @@ def test_follower_is_c2(breathing_stream, monkeypatch, switch_s):
     monkeypatch.setattr(stream_module, "SWITCH_S", switch_s)
     stream, _ = breathing_stream
     f = follow(stream, "linear", PLAIN)
-    assert f.switches.tolist() == [[6.36, 3.0, 1.0]]
+    # X's switch; the axes at rest are taken up at the same arrival (their records tie at 0).
+    assert [s for s in f.switches.tolist() if s[1] == 3.0] == [[6.36, 3.0, 1.0]]
+    assert sorted(f.switches.tolist()) == [[6.36, float(a), 1.0] for a in range(6)]
     h = 1e-5
     for t in (np.linspace(20.0, 22.0, 997), np.linspace(6.2, 7.6, 997), np.linspace(0.2, 0.6, 97)):
         x, v, a = f.evaluate(t)
@@ -507,7 +538,8 @@ def test_follower_is_c2(breathing_stream, monkeypatch, switch_s):
     np.testing.assert_allclose(u[:, 3], [0.103515625, 0.5, 1.0], rtol=1e-12)
     np.testing.assert_allclose(du[:, 3], np.array([1.0546875, 1.875, 0.0]) / switch_s, atol=1e-12)
     np.testing.assert_allclose(ddu[:, 3], np.array([5.625, 0.0, 0.0]) / switch_s**2, atol=1e-9)
-    assert not u[:, :3].any() and not u[:, 4:].any()
+    # The axes at rest move with X (their records tie at 0 from the same arrival).
+    np.testing.assert_allclose(u, np.repeat(u[:, 3:4], 6, axis=1), rtol=0, atol=0)
 
 
 def test_uncertainty_is_the_weighted_rms_of_the_residuals_used(breathing_stream):
@@ -515,7 +547,8 @@ def test_uncertainty_is_the_weighted_rms_of_the_residuals_used(breathing_stream)
     predictions are used, are the record written out on the follower's own predictions (the
     nodes ahead of the newest sample): the exponentially weighted (10 s) RMS residual of what
     is used, from the end of the regression's first pairs (12 samples of history + K) and once
-    5 s (125 samples) of residuals K ahead are in. Only X moves; it is predicted at the end."""
+    5 s (125 samples) of residuals K ahead are in. Only X moves; it is predicted at the end, and
+    the axes at rest are taken up (a tie at rest)."""
     stream, _ = breathing_stream
     f = follow(stream, "linear", PLAIN)
     K = f.sigma.shape[1]
@@ -523,7 +556,7 @@ def test_uncertainty_is_the_weighted_rms_of_the_residuals_used(breathing_stream)
     using, sigma = _record_written_out(ahead, stream.poses, 12 + K, 125, np.exp(-0.04 / 10.0))
     np.testing.assert_array_equal(f.using, using)
     np.testing.assert_allclose(f.sigma, sigma, rtol=1e-9, atol=0, equal_nan=True)
-    assert using[-1].tolist() == [False, False, False, True, False, False]
+    assert using[-1].tolist() == [True] * 6  # X, and the axes at rest (their records tie at 0)
     assert 1e-6 < sigma[-1, K - 1, 3] < 1e-3
 
 

@@ -53,8 +53,12 @@ applied in this order:
    (1 - ``record_margin``) times no prediction's (and has ``min_record_s`` of residuals), and
    dropped (a fallback, counted) as soon as it is no longer below no prediction's: the
    hysteresis keeps a model that merely ties with no prediction from switching at every
-   sample, and a model that stops paying is dropped at once. Where it is not used the newest
-   sample is held.
+   sample, and a model that stops paying is dropped at once. On an axis at rest (no
+   prediction's record within :data:`QUIET_RMS`) a model whose record is no worse is taken up
+   as well: there it moves the reference by less than that, and it is then in use when the
+   motion starts again, instead of a switch (:data:`~.stream.SWITCH_S`) after its record has
+   shown it pays (a motion that rests between excursions is otherwise followed without
+   prediction on the first second of each). Where it is not used the newest sample is held.
    The same record gives the uncertainty: the RMS residual of what is used. The record starts
    once the model's first predictions mean something (its ``warm``: a regression fitted on a
    few samples predicts wildly, and would weigh on the record long after).
@@ -91,6 +95,10 @@ OUTLIER_STEPS = 1.1
 #: The least distance from the position put forward that may make a sample an outlier, in the
 #: axis's unit (m or rad): 10 um or 10 urad, below any tracker's glitch.
 OUTLIER_FLOOR = 1e-5
+#: An axis is at rest for the record when no prediction's RMS residual there is within this, in
+#: the axis's unit (m or rad): 1 um or 1 urad, below any tracker's noise (tens of um) and the
+#: robot's resolution (an encoder count moves the platform by tens of um).
+QUIET_RMS = 1e-6
 
 
 @dataclass(frozen=True)
@@ -540,7 +548,8 @@ class OnlinePredictor:
         else:
             model, none = self._se[0].sum(axis=0), self._se[1].sum(axis=0)
             margin = np.where(self.using, 1.0, 1.0 - self.settings.record_margin)
-            using = model < margin * none
+            quiet = none <= QUIET_RMS**2 * self._w.sum()  # at rest: the tie taken up
+            using = (model < margin * none) | (quiet & (model <= none))
             self.fallbacks += int(np.count_nonzero(self.using & ~using))
             self.using = using
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -555,6 +564,7 @@ __all__ = [
     "MAX_LAGS",
     "MAX_REJECTED_RUN",
     "OUTLIER_FLOOR",
+    "QUIET_RMS",
     "PredictorSettings",
     "check_predictor",
     "HoldModel",
