@@ -97,7 +97,7 @@ OUTLIER_STEPS = 1.1
 OUTLIER_FLOOR = 1e-5
 #: An axis is at rest for the record when no prediction's RMS residual there is within this, in
 #: the axis's unit (m or rad): 1 um or 1 urad, below any tracker's noise (tens of um) and the
-#: robot's resolution (an encoder count moves the platform by tens of um).
+#: robot's resolution (an encoder count of a 110 mm crank is 0.17 mm at its end).
 QUIET_RMS = 1e-6
 
 
