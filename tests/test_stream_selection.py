@@ -129,8 +129,12 @@ def test_the_forms_do_what_they_say():
 
 
 @pytest.mark.parametrize(
-    "change", [{"noise_m": -1.0}, {"outlier_share": 0.6}, {"dropout_share": -0.1}]
-)
+    "change",
+    [
+        {"noise_m": -1.0}, {"outlier_share": 0.6}, {"dropout_share": -0.1}, {"seed": None},
+        {"seed": -1}, {"seed": 1.5}, {"seed": True},
+    ],
+)  # fmt: skip
 def test_bad_forms_are_refused(change):
     with pytest.raises(InvalidConfigError):
         StreamForm(**change)
@@ -370,5 +374,69 @@ def test_the_motions_where_prediction_cannot_pay_are_named_and_seeded():
     assert np.abs(made[0] - made[1]).max() > 1e-3 and np.abs(made[1] - made[2]).max() > 1e-3
     walk = random_walk(4)
     assert walk.name == "random walk 4" and walk.end_time == pytest.approx(120.0, abs=1e-9)
+    d = np.diff(np.asarray(walk.evaluate(np.arange(0.0, 120.0, 0.01))[0])[:, 3:], axis=0)
+    assert np.all(np.abs(d.mean(axis=0)) < 5 * 1e-4 / np.sqrt(len(d)))  # no drift of its own
+    assert np.abs(walk.evaluate(0.5)[0][3:] - np.asarray(X_HOME)[3:]).max() > 1e-5  # from 0 s
     np.testing.assert_array_equal(walk.evaluate(0.0)[0], np.asarray(X_HOME, dtype=float))
     assert random_walk(4, 30.0).end_time == pytest.approx(30.0, abs=1e-9)
+
+
+def test_a_form_draws_the_same_samples_every_time_and_centred():
+    """A form's draws are its seed's: the same form, the same samples (two runs equal to the
+    bit, another seed not); noise and outliers are centred on the true sample (their mean
+    within 5 standard errors of 0); an outlier share of 0.5 is allowed, 0.51 refused."""
+    s = _stream()
+    form = StreamForm(noise_m=3e-4, outlier_share=0.01, dropout_share=0.05, seed=5)
+    first, again = form.apply(s).poses, form.apply(s).poses
+    np.testing.assert_array_equal(first, again)
+    assert np.abs(StreamForm(noise_m=3e-4, seed=6).apply(s).poses - first).max() > 1e-4
+    noise = StreamForm(noise_m=3e-4, seed=1).apply(s).poses[:, 3:] - s.poses[:, 3:]
+    assert np.all(np.abs(noise.mean(axis=0)) < 5 * 3e-4 / np.sqrt(len(noise)))
+    off = StreamForm(outlier_share=0.05, outlier_m=3e-3, seed=2).apply(s).poses - s.poses
+    hit = off[np.any(off != 0, axis=1), 3:]
+    assert np.all(np.abs(hit.mean(axis=0)) < 5 * 3e-3 / np.sqrt(len(hit)))
+    assert StreamForm(dropout_share=0.5).dropout_share == 0.5
+    with pytest.raises(InvalidConfigError, match="dropout_share must be in"):
+        StreamForm(dropout_share=0.51)
+
+
+def test_a_dropout_repeats_the_sample_before_it_never_the_first():
+    """Every sample lost holds the one before it as written (a moving stream, so the one after
+    would differ); the first sample, having none before it, is kept: seeds are searched for
+    draws that lose sample 0 and sample 1, read from the form's own generator."""
+    s = _stream(200)
+    for seed in range(200):
+        lost = np.random.default_rng(seed).random(200) < 0.3  # the form's only draws
+        if lost[0] and lost[1] and not lost[2]:
+            break
+    dropped = StreamForm(dropout_share=0.3, seed=seed).apply(s).poses
+    np.testing.assert_array_equal(dropped[0], s.poses[0])  # nothing before it
+    np.testing.assert_array_equal(dropped[1], s.poses[0])  # the one before, itself kept
+    for i in np.flatnonzero(lost[1:]) + 1:
+        np.testing.assert_array_equal(dropped[i], dropped[i - 1])
+    np.testing.assert_array_equal(dropped[~lost], s.poses[~lost])
+
+
+def test_the_forms_are_laid_on_the_motions_they_name():
+    """Each form's base motion is the library's motion of that name and parameters (the
+    heartbeat's breathing of 4.2 s, the irregular breathing of seed 3), and the breathing
+    with 10 % outliers is the library's breathing."""
+    from stewart_drake.organ_motion.stream_study import case_reference
+
+    t = np.arange(0.0, 30.0, 0.05)
+    cases = {c.label: c for c in next(s for s in sources(None) if s.name == "10 Hz").cases}
+    expected = {
+        "breathing": make_motion("breathing", {}),
+        "irregular breathing": make_motion("irregular_breathing", {"seed": "3"}),
+        "breathing 4.2 s + heartbeat": make_motion("breathing_heartbeat", {"period": "4.2s"}),
+        "sharkfin": make_motion("sharkfin", {}),
+        "hysteresis": make_motion("hysteresis", {}),
+    }
+    assert list(cases) == list(expected)
+    for label, motion in expected.items():
+        got = case_reference(cases[label]).evaluate(t)[0]
+        np.testing.assert_array_equal(got, motion.evaluate(t)[0], err_msg=label)
+    (breathing,) = hurting()[1].cases
+    np.testing.assert_array_equal(
+        case_reference(breathing).evaluate(t)[0], make_motion("breathing", {}).evaluate(t)[0]
+    )

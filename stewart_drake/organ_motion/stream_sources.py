@@ -47,7 +47,8 @@ class StreamForm:
         dropout_share: the share of samples lost, the one before repeated in their place.
         seed: of the draws.
     Raises:
-        InvalidConfigError: a size < 0 or a share outside [0, 0.5].
+        InvalidConfigError: a size < 0, a share outside [0, 0.5] or a seed that is not an
+            integer >= 0.
     """
 
     rate_hz: float | None = None
@@ -65,6 +66,9 @@ class StreamForm:
         for name in ("outlier_share", "dropout_share"):
             if not 0 <= getattr(self, name) <= 0.5:
                 raise InvalidConfigError(f"{name} must be in [0, 0.5], got {getattr(self, name)!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            # None would draw other samples at every run: the same source, the same samples.
+            raise InvalidConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
 
     def apply(self, stream):
         """``stream`` (a :class:`~stewart_drake.references.stream.Stream` of the true motion)
