@@ -676,6 +676,54 @@ def test_frames_fitted_to_a_motion_are_read_as_written(tmp_path):
     np.testing.assert_allclose(bare.X_TB.translation(), [1, 0, 0], atol=0)
 
 
+def test_the_file_of_fitted_frames_reads_as_a_person_would_write_it():
+    """Its head says what it is and where it goes (verify --registration; calibrate needs
+    fiducials), then the frames in the order written (the base, then the marker), each pose a
+    line of three numbers, each sigma named; a calibration refuses it, saying why."""
+    from pydrake.math import RigidTransform, RollPitchYaw
+
+    X = RigidTransform(RollPitchYaw(0.0, 0.0, 0.5), [1.0, -0.5, 0.25])
+    text = rf.motion_frames_yaml(X, RigidTransform(), (1e-3, 2e-4), (3e-3, 4e-4), 5e-5, "a run")
+    lines = text.splitlines()
+    assert lines[:3] == [
+        "# The tracker's frames fitted to a registration motion (stewart-drake verify "
+        "--save-registration):",
+        "# X_TB the base in the tracker's frame, X_PM the marker on the platform. Give this "
+        "file to",
+        "# verify --registration; calibrate needs fiducials instead.",
+    ]
+    assert lines[3:] == [
+        "motion_frames:",
+        "  tracker_base:",
+        "    rpy_rad: [0.0, 0.0, 0.5]",
+        "    xyz_m: [1.0, -0.5, 0.25]",
+        "    rotation_sigma_rad: 0.001",
+        "    translation_sigma_m: 0.0002",
+        "  platform_marker:",
+        "    rpy_rad: [0.0, 0.0, 0.0]",
+        "    xyz_m: [0.0, 0.0, 0.0]",
+        "    rotation_sigma_rad: 0.003",
+        "    translation_sigma_m: 0.0004",
+        "  rms_m: 5.0e-05",
+        "  source: a run",
+    ]
+
+
+def test_a_calibration_refuses_frames_fitted_to_a_motion(tmp_path):
+    """calibrate identifies the kinematics a motion's frames take as true: it reads fiducials
+    only, and says so; a fiducial's noise exactly at its least (1 nm) is read."""
+    (tmp_path / "reg.yaml").write_text(_FRAMES)
+    with pytest.raises(InvalidConfigError) as err:
+        rf.read_fiducials(tmp_path / "reg.yaml")
+    assert str(err.value).endswith(
+        "motion_frames: frames fitted to a registration motion take the robot's kinematics as "
+        "true, which a calibration identifies: register the tracker with fiducials "
+        "(base_points) for calibrate"
+    )
+    (tmp_path / "least.yaml").write_text(_GOOD_BASE + "point_sigma_m: 1.0e-9\n")
+    assert rf.read_fiducials(tmp_path / "least.yaml").point_sigma_m == 1e-9
+
+
 def test_the_good_files_of_the_hostile_cases_are_read(tmp_path):
     (tmp_path / "reg.yaml").write_text(_GOOD_BASE + _PLATFORM)
     reg = rf.read_registration(tmp_path / "reg.yaml")

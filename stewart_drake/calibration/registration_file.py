@@ -344,8 +344,9 @@ def motion_frames_yaml(X_TB, X_PM, sigma_B, sigma_M, rms_m: float, source: str) 
     def frame(X, sigma) -> dict:
         x = _pose_vector(X)
         return {
-            "rpy_rad": [float(v) for v in x[:3]],
-            "xyz_m": [float(v) for v in x[3:]],
+            # + 0.0: a zero is written 0.0, never -0.0 (an identity's angles came out -0.0).
+            "rpy_rad": [float(v) + 0.0 for v in x[:3]],
+            "xyz_m": [float(v) + 0.0 for v in x[3:]],
             "rotation_sigma_rad": float(sigma[0]),
             "translation_sigma_m": float(sigma[1]),
         }
