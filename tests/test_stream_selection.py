@@ -211,6 +211,7 @@ def _table_rows():
         _row("B", "bad", 0.2, 0.50, 1.00, "m1"), _row("B", "bad", 0.5, 0.60, 1.00, "m1"),
         _row("B", "good", 0.2, 9.0, 9.0, "still", judged=False),
         _row("B", "bad", 0.2, 9.0, 9.0, "still", judged=False),
+        _row("A", "good", 0.5, 9.0, 9.0, "early", judged=False),
     ]  # fmt: skip
     rows[0]["fallbacks"], rows[2]["fallbacks"] = 1, 5  # only 0.2 s's are counted
     fallback = [_row("walk", "good", 0.2, 1.0, 1.02, "walk 1"), _row("walk", "good", 0.5, 1.031,
@@ -241,6 +242,14 @@ def test_the_verdicts_say_what_the_rows_hold():
         ("walk", "walk 1", 0.5, 1.031, 1.0, 0, False),
     ]
     assert sel.verdicts(rows)[-1].startswith("B left out")  # no fallback: no line for it
+    fallback[1]["rms_ratio"] = 1.03  # at the goal: met
+    assert sel.verdicts(rows, fallback)[-1] == (
+        "where prediction cannot pay (2 runs): the largest RMS or peak ratio 1.030 "
+        "(goal <= 1.03): met"
+    )
+    assert [c[6] for c in sel.fallback_checks(fallback)] == [True, True]
+    fallback[0]["peak_ratio"] = 1.0301
+    assert [c[6] for c in sel.fallback_checks(fallback)] == [False, True]
 
 
 def test_the_tables_say_what_the_rows_hold(tmp_path):
@@ -276,7 +285,15 @@ def test_the_tables_say_what_the_rows_hold(tmp_path):
         "| walk | walk 1 | 0.5 s | 1.031 | 1.000 | 0 | MISSED |",
     ):
         assert line in lines, line
-    assert text.count("still (B, 0.2 s)") == 1 and "Not judged" in text
+    assert text.count("still (B, 0.2 s)") == 1
+    assert "any predictor and none): still (B, 0.2 s); early (A, 0.5 s).\n" in text
+    assert "streamed 0.2 s and 0.5 s late" in text
+    # Markdown's blank lines: after each heading and paragraph, around each table.
+    for i, line in enumerate(lines):
+        if line.startswith("#") or (line.startswith("|") and not lines[i - 1].startswith("|")):
+            assert lines[i - 1 : i] in ([], [""]) and (line.startswith("|") or lines[i + 1] == "")
+        if line.startswith("|") and i + 1 < len(lines):
+            assert lines[i + 1].startswith("|") or lines[i + 1] == "", line
     assert "RMS and peak ratio <= 1.03." in text
     assert "Not judged" not in "\n".join(sel.tables([r for r in rows if r["judged"]], srcs))
     doc = tmp_path / "study.md"
@@ -286,7 +303,7 @@ def test_the_tables_say_what_the_rows_hold(tmp_path):
     assert written.startswith("before\n" + sel.TABLE_MARKERS[0]) and written.endswith(
         sel.TABLE_MARKERS[1] + "\nafter\n"
     )
-    assert "\n".join(lines) in written
+    assert "\n".join([sel.TABLE_MARKERS[0], "", *lines, "", sel.TABLE_MARKERS[1]]) in written
 
 
 def test_the_sources_hold_the_motions_and_forms_the_docs_name():
@@ -440,3 +457,45 @@ def test_the_forms_are_laid_on_the_motions_they_name():
     np.testing.assert_array_equal(
         case_reference(breathing).evaluate(t)[0], make_motion("breathing", {}).evaluate(t)[0]
     )
+
+
+def test_the_choice_at_the_peak_limit_and_by_the_mean():
+    """A peak exactly at the limit (1.05) keeps a candidate; among those kept the least mean
+    wins, whatever their peaks; peaks at 0.5 s do not count (only 0.2 s's are judged)."""
+    rows = _rows({
+        "edge": {"A": (0.30, 0.40, 1.05)},
+        "calm": {"A": (0.50, 0.60, 1.00)},
+    })  # fmt: skip
+    assert sel.choose(rows) == "edge"
+    late = _rows({"late": {"A": (0.20, 0.30, 1.00)}, "calm": {"A": (0.50, 0.60, 1.00)}})
+    for r in late:
+        if r["candidate"] == "late" and r["latency_s"] == 0.5:
+            r["peak_ratio"] = 2.0
+    assert sel.score(late, "late") == pytest.approx((0.25, 1.0)) and sel.choose(late) == "late"
+
+
+def test_each_candidate_is_what_its_label_says():
+    """Every candidate's settings are those its label names (history, record), with the
+    guards every candidate carries; the three others are their predictor by name with the
+    shipped record. A label that no longer says its settings (as when the shipped record
+    changed under labels that did not name it) fails here."""
+    import re
+
+    from stewart_drake.references.prediction import PredictorSettings
+
+    labels = [c.label for c in sel.CANDIDATES]
+    assert len(set(labels)) == len(labels) == 11
+    settings = {
+        (c.settings.history_s, c.settings.min_record_s, c.predictor) for c in sel.CANDIDATES
+    }
+    assert len(settings) == 11  # no two alike
+    for c in sel.CANDIDATES:
+        assert c.settings.record_margin == 0.1 and c.settings.envelope_s == 120.0
+        words = re.fullmatch(r"linear, ([\d.]+) s history, (\d) s record", c.label)
+        if words:
+            assert c.predictor == "linear"
+            assert c.settings.history_s == float(words[1])
+            assert c.settings.min_record_s == float(words[2])
+        else:
+            assert c.label == c.predictor and c.predictor in ("mulin", "wlms", "kalman")
+            assert c.settings.min_record_s == PredictorSettings().min_record_s

@@ -49,7 +49,7 @@ def main() -> None:
             f"the shipped default is {DEFAULT_PREDICTOR} with other settings: make it "
             f"{candidate.predictor} with {changed} (references/prediction.py)"
         )
-    path = stream_selection.write_tables(Path(args.docs), rows, sources, fallback, hurting)
+    path = stream_selection.write_tables(Path(args.docs), rows, sources, fallback)
     print(f"wrote {path}")
 
 

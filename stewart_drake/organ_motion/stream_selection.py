@@ -318,7 +318,7 @@ def _candidate_grid(rows) -> tuple[list, list]:
     return names, grid
 
 
-def tables(rows, sources, fallback=(), hurting=()) -> list:
+def tables(rows, sources, fallback=()) -> list:
     """The Markdown of the selection (lines): the sources left out, every candidate on every
     source, the motions not judged, and the fallback where prediction cannot pay."""
     shipped = choose(rows)
@@ -387,9 +387,9 @@ def tables(rows, sources, fallback=(), hurting=()) -> list:
     ]
 
 
-def write_tables(path, rows, sources, fallback=(), hurting=()) -> Path:
+def write_tables(path, rows, sources, fallback=()) -> Path:
     """Write :func:`tables` between :data:`TABLE_MARKERS` of ``path``."""
-    lines = tables(rows, sources, fallback, hurting)
+    lines = tables(rows, sources, fallback)
     block = "\n".join([TABLE_MARKERS[0], "", *lines, "", TABLE_MARKERS[1]])
     return write_between_markers(Path(path), TABLE_MARKERS, block)
 
