@@ -711,7 +711,8 @@ def test_the_file_of_fitted_frames_reads_as_a_person_would_write_it():
 
 def test_a_calibration_refuses_frames_fitted_to_a_motion(tmp_path):
     """calibrate identifies the kinematics a motion's frames take as true: it reads fiducials
-    only, and says so; a fiducial's noise exactly at its least (1 nm) is read."""
+    only, and says so; a fiducial's noise exactly at its least (1 nm) is read, and a source of
+    exactly 1000 characters (1001 refused)."""
     (tmp_path / "reg.yaml").write_text(_FRAMES)
     with pytest.raises(InvalidConfigError) as err:
         rf.read_fiducials(tmp_path / "reg.yaml")
@@ -720,6 +721,11 @@ def test_a_calibration_refuses_frames_fitted_to_a_motion(tmp_path):
         "true, which a calibration identifies: register the tracker with fiducials "
         "(base_points) for calibrate"
     )
+    (tmp_path / "long.yaml").write_text(_FRAMES + "  source: " + "s" * rf.MAX_SOURCE_CHARS + "\n")
+    assert rf.read_registration(tmp_path / "long.yaml").source.endswith("(" + "s" * 1000 + ")")
+    (tmp_path / "over.yaml").write_text(_FRAMES + "  source: " + "s" * 1001 + "\n")
+    with pytest.raises(InvalidConfigError, match="at most 1000 characters"):
+        rf.read_registration(tmp_path / "over.yaml")
     (tmp_path / "least.yaml").write_text(_GOOD_BASE + "point_sigma_m: 1.0e-9\n")
     assert rf.read_fiducials(tmp_path / "least.yaml").point_sigma_m == 1e-9
 
