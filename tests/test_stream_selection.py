@@ -248,6 +248,8 @@ def test_the_verdicts_say_what_the_rows_hold():
         "(goal <= 1.03): met"
     )
     assert [c[6] for c in sel.fallback_checks(fallback)] == [True, True]
+    fallback[0]["peak_ratio"] = 1.03  # at the goal: met
+    assert [c[6] for c in sel.fallback_checks(fallback)] == [True, True]
     fallback[0]["peak_ratio"] = 1.0301
     assert [c[6] for c in sel.fallback_checks(fallback)] == [False, True]
 
@@ -499,3 +501,14 @@ def test_each_candidate_is_what_its_label_says():
         else:
             assert c.label == c.predictor and c.predictor in ("mulin", "wlms", "kalman")
             assert c.settings.min_record_s == PredictorSettings().min_record_s
+
+
+def test_a_candidate_is_built_from_its_label_predictor_and_settings():
+    """The candidates' builder: the regression unless another predictor is named, the settings
+    given and the shipped ones otherwise."""
+    from stewart_drake.references.prediction import PredictorSettings
+
+    c = sel._c("two", history_s=2.0, record_margin=0.2)
+    assert (c.label, c.predictor) == ("two", "linear")
+    assert c.settings == PredictorSettings(history_s=2.0, record_margin=0.2)
+    assert sel._c("k", "kalman") == sel.Candidate("k", "kalman", PredictorSettings())
