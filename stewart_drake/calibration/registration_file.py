@@ -87,10 +87,12 @@ _NUMBER_TAGS = frozenset(f"tag:yaml.org,2002:{t}" for t in ("int", "float", "str
 
 class _Nodes:
     """Typed reads of a composed YAML document's nodes, each refusal one line naming the file
-    and the field."""
+    and the field; a missing key's refusal ends with ``remedy``, how to write the format the
+    caller reads."""
 
-    def __init__(self, path):
+    def __init__(self, path, remedy: str = REGISTRATION_REMEDY):
         self.path = path
+        self.remedy = remedy
 
     def refuse(self, field: str, problem: str) -> InvalidConfigError:
         return InvalidConfigError(f"{self.path}: {field}: {problem}")
@@ -114,9 +116,7 @@ class _Nodes:
             out[name] = value
         missing = [k for k in required if k not in out]
         if missing:
-            frames = field.split(".")[0] == MOTION_FRAMES
-            remedy = MOTION_FRAMES_REMEDY if frames else REGISTRATION_REMEDY
-            raise self.refuse(field, f"missing {', '.join(missing)}; {remedy}")
+            raise self.refuse(field, f"missing {', '.join(missing)}; {self.remedy}")
         return out
 
     def sequence(self, node, field: str) -> list:
@@ -291,6 +291,7 @@ def read_registration(path) -> Registration:
     nodes, root = _composed(path)
     if not _has_key(root, MOTION_FRAMES):
         return register(_fiducials(nodes, root), str(path))
+    nodes = _Nodes(path, MOTION_FRAMES_REMEDY)
     top = nodes.mapping(root, "the file", (MOTION_FRAMES,))
     section = nodes.mapping(
         top[MOTION_FRAMES],
