@@ -10,6 +10,7 @@ from stewart_drake.base.checks import (
     as_number,
     as_poses,
     available_memory_bytes,
+    check_int,
     check_memory,
     check_multiple,
     format_bytes,
@@ -99,6 +100,27 @@ def test_check_multiple_gives_the_ratio_or_the_nearest_valid_period():
         check_multiple("log period", 1e-4, "h", 1e-3)
     with pytest.raises(InvalidConfigError):
         check_multiple("log period", float("nan"), "h", 1e-3)
+
+
+def test_check_int_takes_integers_at_both_bounds_and_refuses_one_past_them():
+    assert check_int("seed", 0, 0, 3) == 0 and check_int("seed", np.int64(3), 0, 3) == 3
+    assert type(check_int("seed", np.int32(2), 0, 3)) is int
+    assert check_int("count", 10**12, 1) == 10**12  # no upper bound
+    for value in (-1, 4):
+        with pytest.raises(
+            InvalidConfigError, match=rf"^seed must be an integer in \[0, 3\], got {value}$"
+        ):
+            check_int("seed", value, 0, 3)
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"^resolution must be an integer >= 3 \(a grid through the home pose\), got 2$",
+    ):
+        check_int("resolution", 2, 3, why="a grid through the home pose")
+    for value, shown in ((True, "True"), (3.0, "3.0"), ("3", "'3'"), (None, "None")):
+        with pytest.raises(
+            InvalidConfigError, match=rf"count must be an integer >= 1, got {shown}$"
+        ):
+            check_int("count", value, 1)
 
 
 def test_format_bytes_and_the_memory_check():

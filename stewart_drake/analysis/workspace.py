@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..base.checks import check_memory
+from ..base.checks import check_int, check_memory
 from ..base.errors import IncompleteResultsError, InvalidConfigError
 from ..base.fileio import atomic_write
 from ..execution.runners import JobFailure, ProcessRunner, SerialRunner
@@ -327,14 +327,8 @@ def workspace_summary(
 def _check_resolution(resolution, n_azimuth: int) -> None:
     """Refuse a resolution :func:`workspace_summary` cannot use, or grids that need more memory
     than the machine has (InvalidConfigError), before any grid is allocated."""
-    if (
-        isinstance(resolution, bool)
-        or not isinstance(resolution, (int, np.integer))
-        or resolution < 3
-    ):  # 2: the box's corners only, none reachable
-        raise InvalidConfigError(
-            f"resolution must be an integer >= 3 (a grid through the home pose), got {resolution!r}"
-        )
+    # 2: the box's corners only, none reachable.
+    check_int("resolution", resolution, 3, why="a grid through the home pose")
     n_poses = 2 * float(resolution) ** 3 + n_azimuth * float(resolution) ** 2
     check_memory(
         f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",

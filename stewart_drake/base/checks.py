@@ -105,20 +105,31 @@ def as_number(
     return v
 
 
-def check_int(name: str, value, lo: int, hi: int) -> int:
-    """``value`` as an int in [lo, hi], or a typed error naming ``name``.
+def check_int(name: str, value, lo: int, hi: int | None = None, why: str = "") -> int:
+    """``value`` as an int in [lo, hi], or a typed error naming ``name``: the one check of an
+    integer setting (a count, a seed, a number of periods).
 
     Args:
         name: what the caller calls the argument, e.g. the field path ``reference.seed``.
         value: a Python or numpy integer (a bool or a float is refused, even 3.0).
-        lo, hi: the bounds, inclusive.
+        lo, hi: the bounds, inclusive; ``hi`` None: no upper bound.
+        why: said in brackets after the bound, e.g. "a grid through the home pose".
     Returns:
         ``int(value)``.
     Raises:
-        InvalidConfigError: not an integer, or outside [lo, hi] (both named in the message).
+        InvalidConfigError: not an integer, or outside [lo, hi] (both named in the message:
+            "must be an integer in [lo, hi]", or ">= lo" without ``hi``).
     """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise InvalidConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, np.integer))
+        or value < lo
+        or (hi is not None and value > hi)
+    ):
+        bound = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise InvalidConfigError(
+            f"{name} must be an integer {bound}{f' ({why})' if why else ''}, got {value!r}"
+        )
     return int(value)
 
 

@@ -24,7 +24,7 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..base.checks import as_array, as_number
+from ..base.checks import as_array, as_number, check_int
 from ..base.errors import InvalidConfigError, SimulationDivergedError
 
 N_CHANNELS = 6  # six pose errors, six motor torques
@@ -34,8 +34,7 @@ DEFAULT_EPS = 1e-9
 
 
 def _check_window_eps(window: int, eps: float) -> None:
-    if isinstance(window, bool) or not (isinstance(window, (int, np.integer)) and window >= 1):
-        raise InvalidConfigError(f"window (m + 1 samples) must be an integer >= 1, got {window!r}")
+    check_int("window (m + 1 samples)", window, 1)
     # eps > 0 keeps eq. 35 defined when the window is all zeros.
     as_number("eps (> 0, the floor of eq. 35's denominator)", eps, 0.0, lo_open=True)
 

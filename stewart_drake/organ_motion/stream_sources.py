@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..base.checks import check_int
 from ..base.errors import InvalidConfigError
 from .stream_study import LIBRARY_S, StreamCase, stream_cases
 
@@ -66,9 +67,8 @@ class StreamForm:
         for name in ("outlier_share", "dropout_share"):
             if not 0 <= getattr(self, name) <= 0.5:
                 raise InvalidConfigError(f"{name} must be in [0, 0.5], got {getattr(self, name)!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            # None would draw other samples at every run: the same source, the same samples.
-            raise InvalidConfigError(f"seed must be an integer >= 0, got {self.seed!r}")
+        # None would draw other samples at every run: the same source, the same samples.
+        check_int("seed", self.seed, 0)
 
     def apply(self, stream):
         """``stream`` (a :class:`~stewart_drake.references.stream.Stream` of the true motion)

@@ -73,6 +73,7 @@ from typing import Any
 
 import numpy as np
 
+from ..base.checks import check_int
 from ..base.errors import InvalidConfigError
 from .predictors import HarmonicKalmanModel, MulinModel, RecurrentModel, WaveletLMSModel
 
@@ -208,11 +209,7 @@ class PredictorSettings:
             ("wlms_scales", 1), ("wlms_depth", 1), ("mulin_order", 0), ("kalman_harmonics", 1),
             ("rnn_units", 1),
         ):  # fmt: skip
-            v = getattr(self, name)
-            if not (isinstance(v, int) and not isinstance(v, bool) and v >= low):
-                raise InvalidConfigError(
-                    f"predictor setting {name} must be an integer >= {low}, got {v!r}"
-                )
+            check_int(f"predictor setting {name}", getattr(self, name), low)
         if not isinstance(self.shrink, bool):
             raise InvalidConfigError(
                 f"predictor setting shrink must be True or False, got {self.shrink!r}"

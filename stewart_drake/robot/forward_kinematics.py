@@ -9,10 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..base.checks import as_array, as_number, as_poses
+from ..base.checks import as_array, as_number, as_poses, check_int
 from ..base.errors import (
     ForwardKinematicsError,
-    InvalidConfigError,
 )
 from .kinematics import X_HOME, RobotGeometry, ik_unchecked, jacobian_unchecked, wrap_angle
 
@@ -182,8 +181,7 @@ def fk(
     theta = as_array("motor angles theta", theta, last=6)
     x0 = None if x0 is None else as_poses("initial pose x0", x0)
     tol = as_number("tol", tol, 0.0, lo_open=True)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise InvalidConfigError(f"max_iter must be an integer >= 1, got {max_iter!r}")
+    check_int("max_iter", max_iter, 1)
     x, converged, iterations, residual = fk_unchecked(geometry, theta, x0, tol, max_iter)
     if not np.all(converged):
         k = int(np.argmax(~converged.reshape(-1)))

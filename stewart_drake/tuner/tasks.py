@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base.checks import check_int
 from ..base.errors import InvalidConfigError, StewartError
 from ..plant.clearance import clearance_model
 from ..references.motion import Reference
@@ -255,8 +256,7 @@ def make_task(
     """
     if family not in FAMILIES:
         raise InvalidConfigError(f"unknown task family {family!r}; choose one of {FAMILIES}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InvalidConfigError(f"task seed must be an integer >= 0, got {seed!r}")
+    check_int("task seed", seed, 0)
     if not (np.isfinite(duration_s) and duration_s > 0):
         raise InvalidConfigError(f"duration_s must be > 0 s, got {duration_s}")
     geometry = geometry or StewartGeometry()

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
 
-from ...base.checks import as_array, as_number
+from ...base.checks import as_array, as_number, check_int
 from ...base.errors import InvalidConfigError, RiccatiSolveError, SingularPoseError
 from ...robot import kinematics, statics
 from ...robot.geometry import StewartGeometry
@@ -70,12 +70,7 @@ def error_model(B_c: np.ndarray, h: float, delay_periods: int = 0) -> tuple[np.n
     """
     B_c = as_array("input matrix B_c", B_c, shape=(6, 6))
     h = as_number("sample time h [s]", h, 0.0, 1.0, lo_open=True)
-    if (
-        isinstance(delay_periods, bool)
-        or not isinstance(delay_periods, (int, np.integer))
-        or delay_periods < 0
-    ):
-        raise InvalidConfigError(f"delay_periods must be an integer >= 0, got {delay_periods!r}")
+    check_int("delay_periods", delay_periods, 0)
     I = np.eye(6)
     A = np.zeros((N_E, N_E))
     A[0:6, 0:6] = I
