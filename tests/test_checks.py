@@ -98,8 +98,14 @@ def test_check_multiple_gives_the_ratio_or_the_nearest_valid_period():
         check_multiple("log period", 2.5e-3, "h", 1e-3)
     with pytest.raises(InvalidConfigError, match="nearest valid value is 0.001 s"):
         check_multiple("log period", 1e-4, "h", 1e-3)
-    with pytest.raises(InvalidConfigError):
-        check_multiple("log period", float("nan"), "h", 1e-3)
+    for bad, shown in ((float("nan"), "nan"), (0.0, "0.0"), (-1e-3, "-0.001")):
+        with pytest.raises(
+            InvalidConfigError,
+            match=rf"^log period must be a finite number in \(0, inf\], got {shown}$",
+        ):
+            check_multiple("log period", bad, "h", 1e-3)
+    with pytest.raises(InvalidConfigError, match="^log period must be a number, got '1e-3'"):
+        check_multiple("log period", "1e-3", "h", 1e-3)
 
 
 def test_check_int_takes_integers_at_both_bounds_and_refuses_one_past_them():

@@ -115,6 +115,14 @@ MODULES = {
     "stewart_drake/calibration/registration.py": ("tests/test_calibration_registration.py",),
     "stewart_drake/calibration/registration_file.py": ("tests/test_calibration_registration.py",),
     "stewart_drake/calibration/budget.py": ("tests/test_calibration_budget.py",),
+    # The reference's shaping into what the robot can follow, and its printed summary.
+    "stewart_drake/run/shaping.py": ("tests/test_shaping.py",),
+    # The surrogate: its lag matching and the goal it is matched to, its stage, and verify's
+    # judgement of a pair of runs (not test_robot_surrogate.py, which drives the whole bus).
+    "stewart_drake/station/surrogate/lag_matching.py": ("tests/test_lag_matching.py",),
+    "stewart_drake/station/surrogate/lag_matched_goal.py": ("tests/test_lag_matching.py",),
+    "stewart_drake/station/surrogate/linear_stage.py": ("tests/test_surrogate_servo.py",),
+    "stewart_drake/surrogate/pair_judgement.py": ("tests/test_relative_latency.py",),
 }
 #: What the scratch copy holds: the package, the tests and what they read.
 COPIED = ("stewart_drake", "tests", "tools", "sdf", "scenarios", "docs", "README.md")

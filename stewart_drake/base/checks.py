@@ -134,14 +134,17 @@ def check_int(name: str, value, lo: int, hi: int | None = None, why: str = "") -
 
 
 def check_multiple(name: str, period_s: float, base_name: str, base_s: float) -> int:
-    """How many ``base_s`` steps make ``period_s``; a typed error if it is not a whole number.
+    """How many ``base_s`` steps make ``period_s``; a typed error if it is not a finite number
+    > 0 or not a whole multiple: the one check of a period run on another's grid.
 
     Returns:
         the integer ratio, >= 1.
     Raises:
-        InvalidConfigError: the period is not a whole multiple of the base (1e-6 relative slack),
-            with the nearest valid value in the message.
+        InvalidConfigError: the period is not a finite number > 0 (:func:`as_number`), or not a
+            whole multiple of the base (1e-6 relative slack), with the nearest valid value in the
+            message.
     """
+    period_s = as_number(name, period_s, 0.0, lo_open=True)
     ratio = period_s / base_s
     n = int(round(ratio)) if 0 < ratio < 1e12 else 0  # 1e12 steps: far past any run
     if n < 1 or abs(ratio - n) > 1e-6 * max(1.0, ratio):

@@ -19,7 +19,7 @@ from pydrake.systems.framework import OutputPort, System
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..base.checks import as_array, as_number, check_int, check_multiple
+from ..base.checks import as_array, check_int, check_multiple
 from ..base.errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES, DensityFeatures
 from .lqi.gain import LQI_OMEGA_MAX, LQI_OMEGA_MIN
@@ -109,7 +109,6 @@ class _NetworkTuner(TunerConfig):
 
     def validate(self, controller, control_period_s: float) -> None:
         super().validate(controller, control_period_s)
-        as_number("tuner.period_s", self.period_s, lo=0.0, lo_open=True)
         check_multiple("tuner.period_s", self.period_s, "control_period_s", control_period_s)
         check_int("tuner.feature_window", self.feature_window, 1, 100_000)
         if self.weights and not Path(self.weights).exists():

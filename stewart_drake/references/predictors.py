@@ -33,6 +33,18 @@ def _ring_push(ring: np.ndarray, value) -> None:
     ring[-1] = value
 
 
+def _take_sample(model, y) -> np.ndarray:
+    """Push sample ``y`` (m,) onto ``model._y``, the samples' history (the first sample
+    repeated before the stream's start, so that a history reads a motion at rest there), and
+    count it in ``model._n``; returns ``y`` as floats."""
+    y = np.asarray(y, dtype=float)
+    if model._n == 0:
+        model._y[:] = y
+    model._n += 1
+    _ring_push(model._y, y)
+    return y
+
+
 class WaveletLMSModel:
     """Wavelet-based multiscale autoregression (wLMS) of each axis, k = 1..K samples ahead.
 
@@ -91,11 +103,7 @@ class WaveletLMSModel:
 
     def update(self, y: np.ndarray) -> np.ndarray:
         """Read sample ``y`` (m,); return (K, m) its expected values 1..K samples later."""
-        y = np.asarray(y, dtype=float)
-        if self._n == 0:
-            self._y[:] = y  # the first sample repeated before the stream's start
-        self._n += 1
-        _ring_push(self._y, y)
+        y = _take_sample(self, y)
         _ring_push(self._B, self.features())
         k = np.arange(1, self.K + 1)
         i = np.arange(self.M)
@@ -147,11 +155,7 @@ class MulinModel:
 
     def update(self, y: np.ndarray) -> np.ndarray:
         """Read sample ``y`` (m,); return (K, m) its expected values 1..K samples later."""
-        y = np.asarray(y, dtype=float)
-        if self._n == 0:
-            self._y[:] = y
-        self._n += 1
-        _ring_push(self._y, y)
+        y = _take_sample(self, y)
         past = self._y[len(self._y) - 1 - self._lags]  # (K, r + 2, m): y_(n - i k)
         raw = np.einsum("i,kim->km", self.coef, past) - y[None, :]
         self._e += self.alpha * (raw - self._e)
@@ -413,11 +417,7 @@ class RecurrentModel:
 
     def update(self, y: np.ndarray) -> np.ndarray:
         """Read sample ``y`` (m,); return (K, m) its expected values 1..K samples later."""
-        y = np.asarray(y, dtype=float)
-        if self._n == 0:
-            self._y[:] = y
-        self._n += 1
-        _ring_push(self._y, y)
+        y = _take_sample(self, y)
         step = self._y[-1] - self._y[-2]
         self._scale2 = self._lam * self._scale2 + step * step
         self._weight = self._lam * self._weight + 1.0

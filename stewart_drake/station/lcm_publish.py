@@ -439,5 +439,4 @@ class LcmConfig:
                 f"{self.status_channel!r}: give them different channels (each message type "
                 f"has its own)"
             )
-        as_number("lcm.period_s", self.period_s, 0.0, lo_open=True)
         check_multiple("lcm.period_s", self.period_s, "plant.time_step", plant_time_step_s)

@@ -153,7 +153,6 @@ class LqiDriver(ControllerDriver):
         """
         for name in ("omega_Q", "omega_R"):
             as_number(f"{prefix}{name}", getattr(self, name), LQI_OMEGA_MIN, LQI_OMEGA_MAX)
-        as_number(f"{prefix}schedule_period_s", self.schedule_period_s, 0.0, lo_open=True)
         check_multiple(
             f"{prefix}schedule_period_s",
             self.schedule_period_s,

@@ -86,7 +86,6 @@ class CrankServoDriver(ControllerDriver):
         as_number(f"{prefix}friction_direction_share", self.friction_direction_share, 0.0, 1.0)
         as_number(f"{prefix}friction_adaptation_s", self.friction_adaptation_s, 0.0, 1e4)
         as_number(f"{prefix}disturbance_feedback", self.disturbance_feedback, 0.0, 1.0)
-        as_number(f"{prefix}schedule_period_s", self.schedule_period_s, 0.0, lo_open=True)
         check_multiple(
             f"{prefix}schedule_period_s",
             self.schedule_period_s,
