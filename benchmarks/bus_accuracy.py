@@ -29,20 +29,17 @@ Usage: python benchmarks/bus_accuracy.py [--scenario paper_bus] [--motion breath
 import argparse
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from robot_loop import REST, Breakdown, UpdateClock, _period_starts, busy  # noqa: E402
+from robot_loop import REST, _period_starts, session_on_emulator  # noqa: E402
 
 from stewart_drake.analysis.error_budget import quantization_floor  # noqa: E402
 from stewart_drake.live.command import _start_emulator  # noqa: E402
-from stewart_drake.live.session import run_on_robot  # noqa: E402
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
-from stewart_drake.station.bus.station import DynamixelDriver  # noqa: E402
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 
@@ -99,30 +96,10 @@ def emulated(scenario, args, period: float, load: int, out: str):
     """One session on the emulator: (true errors (n, 6), encoder errors (m, 6), cpu ms (k,),
     misses, periods, breakdown lines)."""
     scenario.control_period_s = scenario.log_period_s = period
-    held = {}
-    clock = UpdateClock()
-    timed = Breakdown() if args.breakdown else None
     emulator = _emulator(scenario, args.plant_friction)
-    loads = busy(load)
-    try:
-        time.sleep(1.0 if load else 0.0)
-        run_on_robot(
-            scenario,
-            out=out,
-            progress=False,
-            say=lambda line: None,
-            before_torque=lambda sd, simulator: held.update(sd=sd),
-            realtime=True,
-        )
-    finally:
-        for p in loads:
-            p.kill()
-            p.wait()
-        emulator.close()
-        DynamixelDriver._Update = clock._update
-        if timed is not None:
-            timed.restore()
-    sd = held["sd"]
+    _, sd, clock, timed = session_on_emulator(
+        scenario, emulator, load, args.breakdown, out, lambda line: None, realtime=True
+    )
     driver = sd.station.driver
     t_periods, _, _ = driver.readings()
     walls = _period_starts(driver)

@@ -127,6 +127,36 @@ def busy(n: int) -> list:
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
+def session_on_emulator(scenario, emulator, load: int, breakdown: bool, out: str, say, **kwargs):
+    """``run_on_robot(scenario)`` on ``emulator`` (closed after) beside ``load`` busy processes,
+    the driver's update timed: (what ``run_on_robot`` returned, the run's station Diagram, its
+    :class:`UpdateClock`, its :class:`Breakdown` or None); every patch undone and every
+    process ended, however the run ends."""
+    held = {}
+    clock = UpdateClock()
+    timed = Breakdown() if breakdown else None
+    loads = busy(load)
+    try:
+        time.sleep(1.0 if load else 0.0)  # the load settles on the cores
+        run = run_on_robot(
+            scenario,
+            out=out,
+            progress=False,
+            say=say,
+            before_torque=lambda sd, simulator: held.update(sd=sd),
+            **kwargs,
+        )
+    finally:
+        for p in loads:
+            p.kill()
+            p.wait()
+        emulator.close()
+        DynamixelDriver._Update = clock._update
+        if timed is not None:
+            timed.restore()
+    return run, held["sd"], clock, timed
+
+
 def rms(e) -> str:
     rot, pos = e[:, :3], e[:, 3:6]
     return f"{1e3 * np.sqrt((rot**2).mean()):.2f} mrad {1e3 * np.sqrt((pos**2).mean()):.3f} mm RMS"
@@ -140,32 +170,12 @@ def one_run(
     scenario.duration_s = duration
     scenario.control_period_s = scenario.log_period_s = period
     scenario.guard.divergence_dir = f"{out}/diverged"
-    held = {}
-    clock = UpdateClock()
-    timed = Breakdown() if breakdown else None
     lines: list[str] = []
     kwargs = {"realtime": True} if realtime else {}
     emulator = _start_emulator(scenario, REST, **kwargs)
-    loads = busy(load)
-    try:
-        time.sleep(1.0 if load else 0.0)  # the load settles on the cores
-        run = run_on_robot(
-            scenario,
-            out=out,
-            progress=False,
-            say=lines.append,
-            before_torque=lambda sd, simulator: held.update(sd=sd),
-            **kwargs,
-        )
-    finally:
-        for p in loads:
-            p.kill()
-            p.wait()
-        emulator.close()
-        DynamixelDriver._Update = clock._update
-        if timed is not None:
-            timed.restore()
-    sd = held["sd"]
+    run, sd, clock, timed = session_on_emulator(
+        scenario, emulator, load, breakdown, out, lines.append, **kwargs
+    )
     driver = sd.station.driver
     cpu = clock.per_period_ms()
     label = f"period {1e3 * period:g} ms, load {load}, {'realtime' if realtime else 'normal'}"
