@@ -104,22 +104,104 @@ def test_the_platform_leading_gives_a_negative_delay():
     assert delays[-1] == pytest.approx(-0.03, abs=3e-4)
 
 
+_AXIS_ONLY = r"^the matched axis must be a translation \(3\.\.5\), got "
+_AXIS_OR_UNIT = (
+    r"^the matched axis must be a translation \(3\.\.5\) or a \(3,\) unit direction, got "
+)
+_UNIT = np.array([0.6, 0.0, 0.8])
+
+
 @pytest.mark.parametrize(
     "change, words",
     [
-        (dict(axis=2), "translation"),
+        (dict(axis=2), _AXIS_ONLY + "2$"),
+        (dict(axis=6), _AXIS_ONLY + "6$"),
+        (dict(axis=True), _AXIS_OR_UNIT + "True$"),  # a bool is not a coordinate
+        (dict(axis=[0.6, 0.8]), _AXIS_OR_UNIT),
+        (dict(axis=[np.nan, 0.0, 1.0]), _AXIS_OR_UNIT),
+        (dict(axis=(1 + 2e-6) * _UNIT), _AXIS_OR_UNIT),  # 2e-6 off a unit length
         (dict(reference_rate=np.zeros(3)), "alike"),
-        (dict(reference=np.full(5, np.nan), reference_rate=np.zeros(5)), "not finite"),
-        (dict(period_s=0.0), "period_s"),
-        (dict(memory_s=-1.0), "memory_s"),
+        (dict(reference=np.zeros(1), reference_rate=np.zeros(1)), r"n >= 2, got \(1,\)"),
+        (
+            dict(reference=np.full(5, np.nan), reference_rate=np.zeros(5)),
+            "^the platform's reference for lag matching is not finite$",
+        ),
+        (dict(period_s=0.0), r"^period_s must be > 0 s, got 0\.0$"),
+        (dict(memory_s=-1.0), r"^memory_s must be > 0 s, got -1\.0$"),
+        (dict(memory_s=math.inf), r"^memory_s must be > 0 s, got inf$"),
         (dict(max_rate=1.5), "max_rate"),
+        (dict(max_rate=1.0), "max_rate 1.0"),
+        (dict(max_delay_s=math.inf), "max_delay_s inf"),
         (dict(min_speed_m_s=0.0), "min_speed"),
+        (dict(t0=math.nan), "^t0 must be finite, got nan$"),
     ],
 )
 def test_wrong_settings_are_refused(change, words):
     args = dict(period_s=H, reference=np.zeros(5), reference_rate=np.zeros(5), axis=Z) | change
     with pytest.raises(InvalidConfigError, match=words):
         PlatformLagMatch(**args)
+
+
+def test_the_limits_at_their_edges_and_each_axis_are_taken():
+    pose = np.array([0.1, 0.2, 0.3, 1.0, 2.0, 3.0])
+    for axis, y in ((3, 1.0), (4, 2.0), (5, 3.0), (_UNIT, 0.6 + 0.8 * 3.0)):
+        match = PlatformLagMatch(H, np.zeros(2), np.zeros(2), axis)
+        assert match.coordinate(pose) == pytest.approx(y, rel=1e-15)
+    PlatformLagMatch(H, np.zeros(2), np.zeros(2), (1 + 5e-7) * _UNIT)  # within 1e-6
+    PlatformLagMatch(H, np.zeros(2), np.zeros(2), Z, max_rate=0.0, max_delay_s=0.0)
+    match = PlatformLagMatch(H, np.zeros(2), np.zeros(2), Z)
+    assert match.state.shape == (6,) and not match.state.any() and math.isnan(match.estimate_s)
+
+
+def test_the_reference_is_read_linear_between_samples_and_held_at_its_ends():
+    match = PlatformLagMatch(H, [1.0, 2.0, 4.0], [10.0, 20.0, 40.0], Z, t0=1.0)
+    for t, want in (
+        (0.5, (1.0, 10.0)),
+        (1.0, (1.0, 10.0)),
+        (1.005, (1.5, 15.0)),
+        (1.0175, (3.5, 35.0)),
+        (1.02, (4.0, 40.0)),
+        (9.0, (4.0, 40.0)),
+    ):
+        assert match._at(t) == pytest.approx(want, rel=1e-12)
+
+
+def test_the_fit_waits_for_a_second_of_readings_and_a_reference_that_moves():
+    """The first estimate at the reading that completes MIN_HISTORY_S (100 at 10 ms); none at
+    all while the reference's rate varies by less than min_speed_m_s RMS."""
+    t = np.arange(3000) * H
+    w = 2 * np.pi / 4.0
+    lam = math.exp(-H / 6.0)  # the 6 s memory
+
+    def moving_from(g):
+        """The first reading, from the 100th, whose weighted variance of the rate reaches
+        (0.2 mm/s)^2, worked out here over the readings so far."""
+        for k in range(99, g.size):
+            weights = lam ** (k - np.arange(k + 1))
+            mean = weights @ g[: k + 1] / weights.sum()
+            if weights @ g[: k + 1] ** 2 / weights.sum() - mean**2 >= (2e-4) ** 2:
+                return k + 1
+        return None
+
+    for amplitude_m, first in ((0.005, 100), (0.4e-4 / w, None), (4e-4 / w, 139)):
+        # Rate RMS about its mean, amplitude w / sqrt(2), over whole cycles: 5.6, 0.028 and
+        # 0.28 mm/s; over the first second's readings, the slowest that moves has 0.2 mm/s
+        # only after 1.39 s.
+        c, g = amplitude_m * np.sin(w * t), amplitude_m * w * np.cos(w * t)
+        assert moving_from(g) == first
+        match = PlatformLagMatch(H, c, g, Z)
+        pose = np.zeros(6)
+        estimates = []
+        for k, tk in enumerate(t):
+            pose[Z] = amplitude_m * np.sin(w * (tk - 0.02))
+            match.update(tk, pose)
+            estimates.append(match.estimate_s)
+        found = np.flatnonzero(np.isfinite(estimates))
+        if first is None:
+            assert found.size == 0 and match.delay_s == 0.0
+        else:
+            assert found[0] + 1 == first
+            assert match.delay_s == pytest.approx(0.02, abs=1e-3)
 
 
 class _Line:
@@ -227,3 +309,44 @@ def test_the_goal_system_takes_the_signal_as_late_as_the_platform_is():
         [0.5 * _breath(late + 0.4), 0.5 * _breath_rate(late + 0.4)],
         atol=3e-6,  # linear between the 10 ms samples
     )
+
+
+def _small_goal(resolution_m=0.0):
+    """A LagMatchedGoal over three samples 10 ms apart from t = 1 s, worked by hand below."""
+    from stewart_drake.station.surrogate.lag_matched_goal import LagMatchedGoal
+
+    t = 1.0 + np.arange(3) * H
+    match = PlatformLagMatch(H, 0.3 + _breath(t), _breath_rate(t), Z, t0=t[0])
+    signal = (t, [0.0, 0.001, 0.003], [1.0, 2.0, 4.0], [10.0, 20.0, 40.0])
+    return LagMatchedGoal(match, signal, H, 0.0005, resolution_m)
+
+
+def test_the_goal_is_linear_between_samples_and_holds_its_ends():
+    goal = _small_goal()
+    halfway = {1.005: [0.0005, 1.5, 15.0], 1.0175: [0.0025, 3.5, 35.0]}  # by hand
+    for t, want in halfway.items():
+        np.testing.assert_allclose(goal.goal_at(t), want, rtol=1e-12, atol=1e-15)
+    for t in (0.5, 1.0):  # before the first sample: the first held
+        np.testing.assert_allclose(goal.goal_at(t), [0.0, 1.0, 10.0], atol=1e-15)
+    for t in (1.02, 1.0201, 5.0):  # at and after the last sample: the last held
+        np.testing.assert_allclose(goal.goal_at(t), [0.003, 4.0, 40.0], atol=1e-15)
+
+
+def test_the_goal_rounds_its_position_only_to_the_stage_resolution():
+    goal = _small_goal(resolution_m=0.0004)
+    # p 0.5 mm -> 0.4 mm (1.25 counts -> 1), 2.5 mm -> 2.4 mm (6.25 -> 6); the rate and the
+    # acceleration as they are.
+    np.testing.assert_allclose(goal.goal_at(1.005), [0.0004, 1.5, 15.0], rtol=1e-12)
+    np.testing.assert_allclose(goal.goal_at(1.0175), [0.0024, 3.5, 35.0], rtol=1e-12)
+    np.testing.assert_allclose(_small_goal(0.0).goal_at(1.0175)[0], 0.0025, rtol=1e-12)
+
+
+def test_the_goal_system_declares_what_its_docstring_says():
+    goal = _small_goal()
+    assert goal.num_input_ports() == 1 and goal.num_output_ports() == 1
+    assert goal.get_input_port().get_name() == "platform_state"
+    assert goal.get_input_port().size() == 12
+    assert goal.get_output_port().get_name() == "goal" and goal.get_output_port().size() == 3
+    context = goal.CreateDefaultContext()
+    assert context.num_discrete_state_groups() == 1
+    assert context.get_discrete_state(0).size() == 6  # the estimator's state, as the match's
