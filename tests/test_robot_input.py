@@ -71,6 +71,10 @@ def _kill_then(signum, original):
 
 
 def _in_read_run(monkeypatch, signum):
+    # run.simulate binds read_run when first imported: imported here first, it keeps the
+    # original, else a later `stewart-drake run` in this process (the docs' blocks) would be
+    # sent the signal long after this test.
+    import stewart_drake.run.simulate  # noqa: F401
     from stewart_drake.run import result
 
     monkeypatch.setattr(result, "read_run", _kill_then(signum, result.read_run))
