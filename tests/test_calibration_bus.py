@@ -13,8 +13,8 @@ from conftest import require_extra
 require_extra("robot")
 
 from stewart_drake.calibration import files, join, poses  # noqa: E402
-from stewart_drake.calibration.command import BUS_REHEARSAL_FILES  # noqa: E402
 from stewart_drake.calibration.tracker import MeasurementNoise, track  # noqa: E402
+from stewart_drake.live.calibrate_command import BUS_REHEARSAL_FILES  # noqa: E402
 from stewart_drake.live.calibration_rehearsal import (  # noqa: E402
     LOOP_TIMEOUT_S,
     REHEARSAL_BUS,

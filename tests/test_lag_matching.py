@@ -192,7 +192,7 @@ def test_the_fit_waits_for_a_second_of_readings_and_a_reference_that_moves():
         match = PlatformLagMatch(H, c, g, Z)
         pose = np.zeros(6)
         estimates = []
-        for k, tk in enumerate(t):
+        for tk in t:
             pose[Z] = amplitude_m * np.sin(w * (tk - 0.02))
             match.update(tk, pose)
             estimates.append(match.estimate_s)

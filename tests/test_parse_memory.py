@@ -25,7 +25,7 @@ pytestmark = [
 _CHILD = """
 import os, resource, sys
 from stewart_drake.cli.registry import build_parser
-import stewart_drake.calibration.command, stewart_drake.calibration.identify  # noqa: F401
+import stewart_drake.live.calibrate_command, stewart_drake.calibration.identify  # noqa: F401
 import stewart_drake.references.traces, stewart_drake.run.plan  # noqa: F401
 import scipy.optimize, scipy.linalg  # noqa: F401
 from stewart_drake.cli.main import main

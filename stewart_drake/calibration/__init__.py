@@ -6,6 +6,7 @@ held-out check (`identify`), the choice of the poses to measure and the path thr
 tracker file into measurements (`join`), the registration of the tracker's frames
 (`registration`) and its file, REG.yaml (`registration_file`), what an estimate is worth
 (`validation`), the rehearsal on an emulated robot and its study (`rehearsal`), the error budget
-of a real laboratory (`budget`), what the command prints (`report`) and the ``calibrate``
-command (`command`).
+of a real laboratory (`budget`) and what the command prints (`report`); the ``calibrate``
+command is :mod:`stewart_drake.live.calibrate_command` (its rehearsal over the bus drives the
+robot live).
 docs/calibration.md."""

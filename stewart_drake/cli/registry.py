@@ -15,9 +15,9 @@ import argparse
 import sys
 
 from ..analysis import command as analysis_command
-from ..calibration import command as calibration_command
 from ..design import command as design_command
 from ..evaluation import command as evaluation_command
+from ..live import calibrate_command
 from ..live import command as live_command
 from ..organ_motion import command as organ_motion_command
 from ..paper import command as paper_command
@@ -35,7 +35,7 @@ COMMANDS = (
     evaluation_command,  # evaluate
     design_command,  # design
     live_command,  # teleop, robot, verify
-    calibration_command,  # calibrate
+    calibrate_command,  # calibrate
     viz_command,  # diagrams
     core,  # scenario, sdf, mjcf
 )
@@ -110,9 +110,6 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
-    # The calibration rehearsed over the bus emulator belongs to the robot live (a layer above
-    # the calibration's): ``calibrate --rehearse --bus`` finds it here.
-    sub.choices["calibrate"].set_defaults(rehearse_on_bus=live_command.rehearse_calibration)
     # An internal motion judged with its external surrogate on one clock belongs to the
     # surrogate's package (a rank above the robot live's): ``verify --surrogate`` finds it here.
     surrogate_pair.add_pair_arguments(sub.choices["verify"])

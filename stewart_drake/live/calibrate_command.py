@@ -4,7 +4,11 @@ measurements (``calibrate MEASUREMENTS.csv --out ROBOT.yaml``), the poses to mea
 measurements (``--join``), or the whole rehearsed on an emulated robot (``--rehearse``; over
 the bus emulator with ``--bus``). With ``--registration REG.yaml`` the tracker's poses are its
 marker's in its own frame, converted to the base frame by the frames REG.yaml's fiducials give
-(:mod:`~.registration`)."""
+(:mod:`~stewart_drake.calibration.registration`).
+
+The command lives with the robot live, not in :mod:`stewart_drake.calibration`: its rehearsal
+over the bus (``--rehearse --bus``) drives the robot's session
+(:mod:`~.calibration_rehearsal`), a floor above the calibration it calls."""
 
 from __future__ import annotations
 
@@ -12,12 +16,12 @@ import math
 import sys
 from pathlib import Path
 
-from ..execution.options import add_scenario_arguments
-from .arguments import (
+from ..calibration.arguments import (
     add_identification_arguments,
     add_mode_arguments,
     add_rehearsal_arguments,
 )
+from ..execution.options import add_scenario_arguments
 
 
 def register(sub) -> None:
@@ -75,7 +79,7 @@ def _derived_inputs(args) -> list:
     file (with ``--join``)."""
     if args.plan_file is None:
         return []
-    from .files import windows_path
+    from ..calibration.files import windows_path
 
     return [(f"--plan-file {args.plan_file}'s windows file", windows_path(args.plan_file))]
 
@@ -128,8 +132,8 @@ def _cmd_calibrate(args) -> int:
     if args.save_measurements is not None:
         if not args.rehearse:
             raise InvalidConfigError("--save-measurements is for --rehearse")
+        from ..calibration.files import registration_path
         from ..execution.options import check_output
-        from .files import registration_path
 
         check_output(args.save_measurements, "--save-measurements", is_file=True)
         if registration is not None:
@@ -139,15 +143,15 @@ def _cmd_calibrate(args) -> int:
                 is_file=True,
             )
     if args.plan is not None:  # its second file, checked before any work as --out is
+        from ..calibration.files import windows_path
         from ..execution.options import check_output
-        from .files import windows_path
 
         check_output(windows_path(args.out), "--out's windows file", is_file=True)
     context = _context(args)
     if args.plan is not None:
         return _plan(args, context)
     if args.rehearse and args.bus is not None:
-        return args.rehearse_on_bus(args, context)
+        return _rehearse_on_bus(args, context)
     if args.rehearse:
         return _rehearse(args, context, registration)
     return _identify(args, context, registration)
@@ -158,8 +162,8 @@ def _registration(args):
     work, or None."""
     if args.registration is None:
         return None
-    from .registration import register
-    from .registration_file import read_fiducials
+    from ..calibration.registration import register
+    from ..calibration.registration_file import read_fiducials
 
     fiducials = read_fiducials(args.registration)
     return register(fiducials, args.registration), fiducials
@@ -208,8 +212,8 @@ def _check_bus_rehearsal(args) -> None:
 def _join(args, registration) -> int:
     """``calibrate --join ENCODERS.csv TRACKER.csv --plan-file POSES.csv --out
     MEASUREMENTS.csv``: every file read and checked before the one written."""
-    from .files import windows_path, write_measurements
-    from .join import join
+    from ..calibration.files import windows_path, write_measurements
+    from ..calibration.join import join
 
     encoders, tracker = args.join
     joined = join(
@@ -268,10 +272,10 @@ def _clock_offset(text):
 def _context(args):
     """(the command's scenario, the nominal geometry at the temperature of the measurements
     (:func:`~.files.nominal_at_temperature`), the measurement noise)."""
+    from ..calibration.files import nominal_at_temperature
+    from ..calibration.tracker import COUNTS_PER_REV, MeasurementNoise
     from ..run.plan import as_built
     from ..run.scenario_io import load_scenario
-    from .files import nominal_at_temperature
-    from .tracker import COUNTS_PER_REV, MeasurementNoise
 
     scenario = load_scenario(args.scenario, args.set or ())
     hardware = as_built(scenario).hardware  # on a bus, the robot built with its servos
@@ -284,9 +288,9 @@ def _identify(args, context, registration) -> int:
     """``calibrate MEASUREMENTS.csv --out ROBOT.yaml [--registration REG.yaml]``."""
     from dataclasses import replace
 
-    from .files import read_measurements, robot_section
-    from .registration import register_poses
-    from .report import (
+    from ..calibration.files import read_measurements, robot_section
+    from ..calibration.registration import register_poses
+    from ..calibration.report import (
         check_reachable,
         frames_text,
         identification_checks,
@@ -341,7 +345,7 @@ def _held_at(scenario, geometry) -> str:
 def _identification(args, geometry, poses, q, noise, registered=None):
     """:func:`~.identify.identify` with the command's options (and a registration's
     :class:`~.registration.RegisteredPoses`' errors)."""
-    from .identify import identify
+    from ..calibration.identify import identify
 
     return identify(
         geometry,
@@ -359,7 +363,7 @@ def _identification(args, geometry, poses, q, noise, registered=None):
 
 def _plan(args, context) -> int:
     """``calibrate --plan N --out POSES.csv``."""
-    from .report import plan_poses
+    from ..calibration.report import plan_poses
 
     scenario, _, noise = context
     return plan_poses(
@@ -377,11 +381,11 @@ def _plan(args, context) -> int:
 def _rehearse(args, context, registration) -> int:
     """``calibrate --rehearse [--registration REG.yaml]``: with a registration, the emulated
     tracker stands at its frames, its fiducials where REG.yaml's drawing puts them."""
+    from ..calibration.files import robot_section
+    from ..calibration.rehearsal import pick, rehearse, setup_of_registration, workspace
+    from ..calibration.report import rehearsal_text, write_identified
     from ..robot.tolerances import Tolerances
     from ..run.plan import robot_motor_limits
-    from .files import robot_section
-    from .rehearsal import pick, rehearse, setup_of_registration, workspace
-    from .report import rehearsal_text, write_identified
 
     scenario, geometry, noise = context
     tolerances = Tolerances()
@@ -430,8 +434,8 @@ def _rehearse(args, context, registration) -> int:
 def _save_rehearsal(args, geometry, r, x, noise, setup, sigma) -> None:
     """``--save-measurements``: the rehearsal's measurements (the marker's in the tracker's
     frame with a setup, and the fiducials measured, a REG.yaml beside them)."""
-    from .files import registration_path, write_measurements, write_registration
-    from .tracker import measure
+    from ..calibration.files import registration_path, write_measurements, write_registration
+    from ..calibration.tracker import measure
 
     data = measure(geometry, r.truth, x, noise, args.seed, setup=setup)
     path = write_measurements(args.save_measurements, data.poses, data.readings)
@@ -444,3 +448,39 @@ def _save_rehearsal(args, geometry, r, x, noise, setup, sigma) -> None:
         f"wrote {path} (the emulated measurements, the marker's in the tracker's frame) and "
         f"{reg} (its fiducials: calibrate {path.name} --registration {reg.name} reads them)"
     )
+
+
+def _rehearse_on_bus(args, context) -> int:
+    """``calibrate --rehearse --bus FOLDER``: the calibration rehearsed over the bus emulator
+    (:func:`~.calibration_rehearsal.rehearse_on_bus`), its figures printed; ``context`` is the
+    calibrate command's (the scenario, the nominal geometry, the tracker's noise)."""
+    from ..base.errors import InvalidConfigError
+    from .calibration_rehearsal import rehearse_on_bus
+
+    scenario, _, noise = context
+    if scenario.bus is None:
+        raise InvalidConfigError(
+            f"--rehearse --bus drives the robot on its bus: --scenario {args.scenario} has no "
+            f"bus section (paper_bus has one)"
+        )
+    from ..station.bus.vendor_port import dynamixel_sdk
+
+    dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
+    from ..execution.options import say_if_compiling
+
+    say_if_compiling("robot")
+    rehearsal = rehearse_on_bus(
+        scenario,
+        args.poses,
+        args.bus,
+        seed=args.seed,
+        noise=noise,
+        select=args.select or "chosen",
+        dwell_s=args.dwell,
+        n_candidates=args.candidates,
+        progress=not args.no_progress,
+        say=lambda line: print(line, flush=True),
+    )
+    print(rehearsal.text())
+    print(f"wrote in {args.bus}: " + ", ".join(Path(p).name for p in rehearsal.files.values()))
+    return 0

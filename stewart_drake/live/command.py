@@ -484,37 +484,3 @@ def _truth_lines(scenario, sd, emulator, metrics) -> list[str]:
     t = np.linspace(window[0], window[1], 50)
     centre = sd.trajectory.evaluate(t)[0].mean(axis=0)
     return truth_lines(sd, emulator.truth(), window, quantization_floor(scenario, centre))
-
-
-def rehearse_calibration(args, context) -> int:
-    """``calibrate --rehearse --bus FOLDER``: the calibration rehearsed over the bus emulator
-    (:func:`~.calibration_rehearsal.rehearse_on_bus`), its figures printed; ``context`` is the
-    calibrate command's (the scenario, the nominal geometry, the tracker's noise)."""
-    from ..base.errors import InvalidConfigError
-    from .calibration_rehearsal import rehearse_on_bus
-
-    scenario, _, noise = context
-    if scenario.bus is None:
-        raise InvalidConfigError(
-            f"--rehearse --bus drives the robot on its bus: --scenario {args.scenario} has no "
-            f"bus section (paper_bus has one)"
-        )
-    from ..station.bus.vendor_port import dynamixel_sdk
-
-    dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
-    say_if_compiling("robot")
-    rehearsal = rehearse_on_bus(
-        scenario,
-        args.poses,
-        args.bus,
-        seed=args.seed,
-        noise=noise,
-        select=args.select or "chosen",
-        dwell_s=args.dwell,
-        n_candidates=args.candidates,
-        progress=not args.no_progress,
-        say=lambda line: print(line, flush=True),
-    )
-    print(rehearsal.text())
-    print(f"wrote in {args.bus}: " + ", ".join(Path(p).name for p in rehearsal.files.values()))
-    return 0
