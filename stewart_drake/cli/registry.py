@@ -34,7 +34,8 @@ COMMANDS = (
     tuner_command,  # collect, train
     evaluation_command,  # evaluate
     design_command,  # design
-    live_command,  # teleop, robot, verify
+    live_command,  # teleop, robot
+    surrogate_pair,  # verify
     calibrate_command,  # calibrate
     viz_command,  # diagrams
     core,  # scenario, sdf, mjcf
@@ -110,7 +111,4 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
-    # An internal motion judged with its external surrogate on one clock belongs to the
-    # surrogate's package (a rank above the robot live's): ``verify --surrogate`` finds it here.
-    surrogate_pair.add_pair_arguments(sub.choices["verify"])
     return parser

@@ -21,8 +21,10 @@ from ..execution.trace_options import add_trace_arguments
 ENCODER_LOG_SUFFIX = "_encoders.csv"
 
 
-def add_verify_command(sub) -> None:
-    """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers."""
+def add_verify_command(sub):
+    """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers; returns its
+    parser (its surrogate's options are added to it by
+    :func:`stewart_drake.surrogate.pair_command.register`)."""
     from ..organ_motion import SCENARIO
 
     vp = sub.add_parser(
@@ -42,6 +44,7 @@ def add_verify_command(sub) -> None:
     )
     vp.add_argument("--out", default="results/verify", help="report folder")
     vp.set_defaults(func=cmd_verify)
+    return vp
 
 
 def _add_measured_arguments(vp) -> None:

@@ -8,6 +8,7 @@ from functools import partial
 from pathlib import Path
 
 from ..base.errors import InvalidConfigError
+from ..live.verification import ENCODER_LOG_SUFFIX
 from ..organ_motion.fidelity import AXES
 from ..organ_motion.measured_verdict import (
     seconds,
@@ -15,13 +16,18 @@ from ..organ_motion.measured_verdict import (
 from .pair_judgement import MAX_RELATIVE_LATENCY_S, verify_pair
 from .pair_report import write_pair
 
-#: The end of an encoder log's name (``<stem>_encoders.csv``, as ``robot`` writes it): given to
-#: ``--measured`` it is read as ``verify`` alone reads it (the platform by forward kinematics),
-#: given to ``--measured-surrogate`` for its surrogate's carriage ``s``; both on ``t_path``.
-ENCODER_LOG_SUFFIX = "_encoders.csv"
 #: ``--surrogate``'s word for the motion's external signal made by a correlation model
 #: (:func:`~.external_reference.model_reference`) instead of a recorded file.
 MODEL = "model"
+
+
+def register(sub) -> None:
+    """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers: the motion
+    judged alone (:func:`stewart_drake.live.verification.add_verify_command`) or, with these
+    options (:func:`add_pair_arguments`), with its surrogate on one clock."""
+    from ..live.verification import add_verify_command
+
+    add_pair_arguments(add_verify_command(sub))
 
 
 def add_pair_arguments(vp) -> None:
@@ -94,7 +100,10 @@ def add_pair_arguments(vp) -> None:
 
 
 def is_encoder_log(path) -> bool:
-    """Whether ``path`` names a robot run's encoder log (:data:`ENCODER_LOG_SUFFIX`)."""
+    """Whether ``path`` names a robot run's encoder log (its name ends in
+    :data:`~stewart_drake.live.verification.ENCODER_LOG_SUFFIX`, as ``robot`` writes it): given
+    to ``--measured`` it is read as ``verify`` alone reads it (the platform by forward
+    kinematics), given to ``--measured-surrogate`` for its surrogate's carriage ``s``."""
     return str(path).endswith(ENCODER_LOG_SUFFIX)
 
 
@@ -327,7 +336,6 @@ def _on_the_motions_clock(surrogate, reference, path):
 
 
 __all__ = [
-    "ENCODER_LOG_SUFFIX",
     "MODEL",
     "is_encoder_log",
     "carriage_axis",
