@@ -18,7 +18,14 @@ trace's second column less its least value, ``read1Dfile``), on the camera's one
 (:func:`relative_latency`; tests/test_verify_interact.py, tools/interact_relative_latency_table.py).
 """
 
+import argparse
+from pathlib import Path
+
 import numpy as np
+
+#: The longest camera gap ``verify`` judges across on these runs, s: two of them hold one gap
+#: of 1.34 s.
+MAX_GAP_S = 1.5
 
 
 def optimal_shift(t_in, y_in, t_out, y_out, lo=0.0, hi=40.0, step=0.05, amplitude_step=0.01):
@@ -105,3 +112,23 @@ def camera_file(path, time_file, depth_file):
     rows = ["t [s],depth [mm]"] + [f"{float(a)!r},{float(b)!r}" for a, b in zip(t, depth)]
     path.write_text("\n".join(rows) + "\n")
     return path
+
+
+def table_arguments(description: str) -> argparse.Namespace:
+    """The options of a tool that writes a table of these runs into the docs: ``--data`` (a
+    folder holding IntERAct's runs) and ``--docs`` (the page)."""
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--data", required=True, help="a folder holding IntERAct's runs")
+    parser.add_argument("--docs", default="docs/organ_motion.md")
+    return parser.parse_args()
+
+
+def write_table(docs, markers, header, rows, summary: str) -> None:
+    """Print ``summary`` and write the table (``header``, ``rows``) and it between ``markers``
+    in the page ``docs``."""
+    from stewart_drake.base.fileio import write_between_markers
+    from stewart_drake.base.tables import markdown_lines
+
+    print(summary)
+    block = "\n".join([markers[0], "", *markdown_lines(header, rows), "", summary, "", markers[1]])
+    print(f"wrote {write_between_markers(Path(docs), markers, block)}")

@@ -16,6 +16,7 @@ import os
 import numpy as np
 import pytest
 from interact_method import (
+    MAX_GAP_S,
     TRACE_COLUMN,
     camera_file,
     laboratory_pairs,
@@ -69,7 +70,15 @@ def verify_depth(tmp_path, trace, camera, *options):
     out = tmp_path / "out"
     code = main(
         ["verify", str(trace), "--measured", str(camera), "--measured-map", "depth=AP"]
-        + ["--measured-max-gap", "1.5", "--tolerance", "1mm,1deg", "--out", str(out), *options]
+        + [
+            "--measured-max-gap",
+            str(MAX_GAP_S),
+            "--tolerance",
+            "1mm,1deg",
+            "--out",
+            str(out),
+            *options,
+        ]
     )
     (report,) = sorted(out.glob("verify_*.json"))
     return code, json.loads(report.read_text())
@@ -194,6 +203,8 @@ def test_interacts_relative_latencies_agree_with_their_method(tmp_path):
     clock search) and by their RMSEAlignMethod.m (0.05 s steps, as IntERAct_data_analysis.m
     searches): within 0.05 s on at least 12 (the issue's acceptance), within 0.1 s on all."""
     pairs = laboratory_pairs(INTERACT)
+    if not pairs:  # a folder of IntERAct's traces only, as the robot's tests read
+        pytest.skip(f"no laboratory runs under {INTERACT} ('Figure 5 - Table 2')")
     assert len(pairs) == 21, [p[0] for p in pairs]
     differences = []
     for k, (label, trace, resp, time_file, depth_6d, depth_1d) in enumerate(pairs):
@@ -205,7 +216,7 @@ def test_interacts_relative_latencies_agree_with_their_method(tmp_path):
             read_measured(internal, axis_map={"depth": "AP"}),
             read_measured(surrogate, axis_map={"depth": "SI"}),
             tolerance=(1e-3, 0.02),
-            max_gap_s=1.5,
+            max_gap_s=MAX_GAP_S,
         )
         theirs, s6, s1 = relative_latency(trace, resp, time_file, depth_6d, depth_1d)
         assert -pair.internal_shift_s == pytest.approx(s6, abs=0.1), label

@@ -18,7 +18,6 @@ shift over 0-40 s by 0.05 s as ``IntERAct_data_analysis.m`` searches it, and by 
 ``RMSEAlignMethod.m`` itself steps). About ten seconds a run.
 """
 
-import argparse
 import json
 import sys
 import tempfile
@@ -28,10 +27,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from interact_method import camera_file, laboratory_pairs, relative_latency  # noqa: E402
+from interact_method import (  # noqa: E402
+    MAX_GAP_S,
+    camera_file,
+    laboratory_pairs,
+    relative_latency,
+    table_arguments,
+    write_table,
+)
 
-from stewart_drake.base.fileio import write_between_markers  # noqa: E402
-from stewart_drake.base.tables import markdown_lines  # noqa: E402
 from stewart_drake.cli.main import main as stewart_drake  # noqa: E402
 
 #: Where the table goes in the docs.
@@ -40,8 +44,6 @@ MARKERS = (
     "tools/interact_relative_latency_table.py -->",
     "<!-- end of interact relative latency table -->",
 )
-#: The longest gap judged across, s: two of the runs hold one camera gap of 1.34 s.
-MAX_GAP_S = 1.5
 #: The agreement the issue asks for, s, and on how many runs.
 AGREEMENT_S, AT_LEAST = 0.05, 12
 
@@ -60,10 +62,7 @@ def judge(trace, resp, time_file, depth_6d, depth_1d, folder: Path) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", required=True, help="a folder holding IntERAct's runs")
-    parser.add_argument("--docs", default="docs/organ_motion.md")
-    args = parser.parse_args()
+    args = table_arguments(__doc__.splitlines()[0])
     pairs = laboratory_pairs(args.data)
     if not pairs:
         raise SystemExit(f"no laboratory runs under {args.data}: see the docstring")
@@ -116,9 +115,7 @@ def main() -> None:
         f"{int(np.count_nonzero(np.abs(ours_all) <= 0.1))} of {len(pairs)} within the 0.1 s the "
         "authors claim."
     )
-    print(summary)
-    block = "\n".join([MARKERS[0], "", *markdown_lines(header, rows), "", summary, "", MARKERS[1]])
-    print(f"wrote {write_between_markers(Path(args.docs), MARKERS, block)}")
+    write_table(args.docs, MARKERS, header, rows, summary)
 
 
 if __name__ == "__main__":
