@@ -141,9 +141,9 @@ def _ratio(motion, form, settings):
     t = np.arange(0.0, end, MEASURE_STEP_S)
     truth = np.asarray(motion.evaluate(t)[0])
     stream = form.apply(stream_of(motion, 0.2, form.rate_hz, end))
-    none = stream_figures(t, truth, follow(stream, "none").evaluate(t)[0])
+    none = stream_figures(truth, follow(stream, "none").evaluate(t)[0])
     f = follow(stream, "linear", settings)
-    mine = stream_figures(t, truth, f.evaluate(t)[0])
+    mine = stream_figures(truth, f.evaluate(t)[0])
     return mine["rms_translation_m"] / none["rms_translation_m"], f
 
 

@@ -34,11 +34,12 @@ BAND_WINDOW_S = 10.0
 BAND_MIN_SAMPLES = 20
 
 
-def stream_figures(t, x_true, x, tolerance=(1e-3, 0.01)) -> dict:
-    """Errors of poses ``x`` against the true motion ``x_true`` at times ``t``.
+def stream_figures(x_true, x, tolerance=(1e-3, 0.01)) -> dict:
+    """Errors of poses ``x`` against the true motion ``x_true``, sampled alike on a uniform
+    grid (every figure is a mean over the samples, so a share of the samples is one of time).
 
     Args:
-        t: (n,) s. x_true, x: (n, 6) [phi, theta, psi, X, Y, Z], rad and m.
+        x_true, x: (n, 6) [phi, theta, psi, X, Y, Z], rad and m.
         tolerance: (m, rad): the error allowed in translation (3-D) and rotation (3-D).
     Returns:
         {"rms_translation_m", "rms_rotation_rad" (3-D RMS), "peak_translation_m",
@@ -163,7 +164,7 @@ def follow_motion(
     t = np.arange(from_s, end, MEASURE_STEP_S)
     x_true = np.asarray(reference.evaluate(t)[0])
     figures = {
-        name: stream_figures(t, x_true, f.evaluate(t)[0], tolerance) for name, f in followed.items()
+        name: stream_figures(x_true, f.evaluate(t)[0], tolerance) for name, f in followed.items()
     }
     chosen = followed[predictor]
     moving = np.ptp(stream.poses, axis=0) > 0
@@ -277,7 +278,7 @@ def reproduce_stream(
     t = np.arange(0.0, duration, MEASURE_STEP_S)
     x_streamed = np.asarray(streamed.evaluate(t)[0])
     figures["given"] = given
-    figures["shaped"] = stream_figures(t, x_streamed, given.evaluate(t)[0], tolerance)
+    figures["shaped"] = stream_figures(x_streamed, given.evaluate(t)[0], tolerance)
     figures["shaping"] = given.record.as_dict()
     figures["band"] = band_figures(given, streamed, figures["followed"].stream)
     figures["scale"] = scale
@@ -290,7 +291,7 @@ def reproduce_stream(
     )
     t = np.asarray(rep.result.t, dtype=float)
     x = np.asarray(rep.result.x[:, :6], dtype=float)
-    figures["robot"] = stream_figures(t, np.asarray(truth.evaluate(t)[0]), x, tolerance)
+    figures["robot"] = stream_figures(np.asarray(truth.evaluate(t)[0]), x, tolerance)
     figures["reproduction"] = rep
     figures["robot_tracking"] = rep.fidelity
     figures["truth"] = truth
