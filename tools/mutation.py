@@ -118,6 +118,7 @@ MODULES = {
     "stewart_drake/calibration/budget.py": ("tests/test_calibration_budget.py",),
     # The reference's shaping into what the robot can follow, and its printed summary.
     "stewart_drake/run/shaping.py": ("tests/test_shaping.py",),
+    "stewart_drake/run/shaping_record.py": ("tests/test_shaping_record.py",),
     # The surrogate: its lag matching and the goal it is matched to, its stage, and verify's
     # judgement of a pair of runs (not test_robot_surrogate.py, which drives the whole bus).
     "stewart_drake/station/surrogate/lag_matching.py": ("tests/test_lag_matching.py",),
