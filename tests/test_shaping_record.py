@@ -29,6 +29,9 @@ def test_no_period_counts_zero_and_no_time():
     assert times == [2, 10, 11]
     assert np.isnan(r[times]).all() and not np.delete(r, times).any()
     assert ShapingRecord.from_values(H, r) == ShapingRecord(H)
+    for wrong in (r[:-1], np.append(r, 0.0)):  # a state of another layout is not read
+        with pytest.raises(ValueError, match="zip"):
+            ShapingRecord.from_values(H, wrong)
 
 
 def _counted() -> np.ndarray:

@@ -65,6 +65,19 @@ def test_the_drive_is_built_from_the_part_the_diagram_uses():
         assert getattr(diagram, name) == getattr(bus, name), name
     assert diagram.moving_mass_kg() * r * r == pytest.approx(drive.J, rel=1e-9)
     assert diagram.no_load_speed_m_s * 0.8 == pytest.approx(drive.config.max_speed_m_s())
+    # The horn's viscous friction at the carriage: b / r^2, N s/m (a force b w / r at a speed
+    # w r), 0.0426 N m s/rad through 12.7 mm/rad: 263 N s/m.
+    assert bus.viscous_N_s_per_m() == pytest.approx(0.05 * stall / no_load / r**2, rel=1e-9)
+    assert 262 < bus.viscous_N_s_per_m() < 263
+
+
+def test_a_stage_at_the_edges_of_its_ranges_is_taken():
+    """A metre of travel and 50 kg of carriage are the largest taken; a step past them is
+    refused naming the field."""
+    LinearStage(travel_m=1.0, carriage_mass_kg=50.0, efficiency=1.0).check()
+    for field, value in (("travel_m", 1.01), ("carriage_mass_kg", 50.5)):
+        with pytest.raises(InvalidConfigError, match=rf"^stage\.{field} must be a finite number"):
+            LinearStage(**{field: value}).check()
 
 
 @pytest.mark.parametrize(
