@@ -17,6 +17,7 @@ from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import main
 from stewart_drake.organ_motion.examples import FOLDER
 from stewart_drake.organ_motion.measured_motion import read_measured
+from stewart_drake.organ_motion.measured_verdict import seconds
 from stewart_drake.references.traces import load_trace
 from stewart_drake.surrogate.pair_judgement import (
     MAX_RELATIVE_LATENCY_S,
@@ -190,7 +191,28 @@ def test_a_relative_latency_beyond_the_search_is_at_least_its_edge(tmp_path):
     assert "(at the edge of the relative latencies searched)" in causes(pair)
     # On its own the surrogate finds its own clock, 2.5 s later than the internal's.
     assert -pair.surrogate.shift_s == pytest.approx(DELAY_S + 2.5, abs=0.005)
-    assert "matches its reference best" in pair.notes[0]
+    # Its own match is at least 1 s (2.5 less the 1.5 searched) earlier on the reference's clock
+    # than the pair's: the note says so, and says the search.
+    apart = pair.surrogate.shift_s - pair.surrogate_shift_s
+    assert apart <= -(2.5 - RELATIVE_SEARCH_S) + 0.01
+    assert pair.notes == [
+        f"on its own, depth_surrogate.csv matches its reference best {seconds(-apart)} earlier "
+        "than on the internal's clock: its fidelity is that of its own best match, the relative "
+        "latency that of the pair's (searched within +-1.5 s of the internal's)"
+    ]
+
+
+def test_a_surrogate_whose_own_match_is_later_is_said_so(tmp_path):
+    t = camera_clock()
+    early = seen(1, SURROGATE, t, DELAY_S - 2.5, offset_mm=OFFSETS_MM[1])
+    pair = judge(*pair_files(tmp_path, surrogate=early))
+    apart = pair.surrogate.shift_s - pair.surrogate_shift_s
+    assert apart >= (2.5 - RELATIVE_SEARCH_S) - 0.01
+    assert pair.notes == [
+        f"on its own, depth_surrogate.csv matches its reference best {seconds(apart)} later "
+        "than on the internal's clock: its fidelity is that of its own best match, the relative "
+        "latency that of the pair's (searched within +-1.5 s of the internal's)"
+    ]
 
 
 def test_swapped_files_fail_as_swapped(tmp_path):

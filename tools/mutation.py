@@ -124,7 +124,10 @@ MODULES = {
     "stewart_drake/station/surrogate/lag_matching.py": ("tests/test_lag_matching.py",),
     "stewart_drake/station/surrogate/lag_matched_goal.py": ("tests/test_lag_matching.py",),
     "stewart_drake/station/surrogate/linear_stage.py": ("tests/test_surrogate_servo.py",),
-    "stewart_drake/surrogate/pair_judgement.py": ("tests/test_relative_latency.py",),
+    "stewart_drake/surrogate/pair_judgement.py": (
+        "tests/test_relative_latency.py",
+        "tests/test_pair_judgement.py",
+    ),
 }
 #: Modules with no compiled kernel of their own whose tests drive the package's compiled ones
 #: (the IK and the path checks of every shaped period): mutated with the JIT on, since with it

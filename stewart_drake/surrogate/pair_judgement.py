@@ -203,6 +203,21 @@ def search_half_width(reference, max_relative_latency_s: float) -> float:
     return min(width, 0.45 * period) if period else width
 
 
+#: The fewest samples inside the reference's span that are compared alone (:func:`span_mask`).
+MIN_INSIDE = 10
+
+
+def span_mask(reference, t_ref) -> np.ndarray:
+    """(n,) bool: which of the times ``t_ref`` (s, on the reference's clock) fall inside the
+    reference's span, [0, its ``end_time``] (no end: from 0 on); all of them when fewer than
+    :data:`MIN_INSIDE` do (a measurement mostly outside is compared whole rather than on a
+    handful of samples)."""
+    t_ref = np.asarray(t_ref, dtype=float)
+    end = getattr(reference, "end_time", None)
+    use = (t_ref >= 0.0) & (t_ref <= (math.inf if end is None else float(end)))
+    return use if np.count_nonzero(use) >= MIN_INSIDE else np.ones(len(t_ref), dtype=bool)
+
+
 def relative_shift(reference, measured, around_s: float, half_width_s: float) -> float:
     """The shift d (s; the measured time + d = the reference's time) of least distance between
     the measured axes and the reference's, each less its mean difference (``verify``'s frames
@@ -223,15 +238,12 @@ def relative_shift(reference, measured, around_s: float, half_width_s: float) ->
     frames = Frames("axes")
     weights = axis_weights(measured.measured)
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
-    end = getattr(reference, "end_time", None)
 
     def seen(times):
         return reference_seen(frames, reference, times)
 
     def inside(d0: float) -> np.ndarray:
-        t_ref = t + d0
-        use = (t_ref >= 0.0) & (t_ref <= (math.inf if end is None else float(end)))
-        return use if np.count_nonzero(use) >= 10 else np.ones(len(t), dtype=bool)
+        return span_mask(reference, t + d0)
 
     bounds = (around_s - half_width_s, around_s + half_width_s)
     return best_shift(t, y, weights, seen, bounds, step, True, inside)
@@ -251,14 +263,12 @@ def _window(ver) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _at_shift(reference, measured, d: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, x, x_d) of ``measured`` put on ``reference``'s clock by the shift d (s), over the
-    samples inside the reference's span, each measured axis less its mean difference."""
+    samples inside the reference's span (:func:`span_mask`), each measured axis less its mean
+    difference."""
     from ..organ_motion.alignment import reference_poses
 
     t_ref = measured.t + d
-    end = getattr(reference, "end_time", None)
-    keep = (t_ref >= 0.0) & (t_ref <= (math.inf if end is None else float(end)))
-    if np.count_nonzero(keep) < 10:
-        keep = np.ones(len(t_ref), dtype=bool)
+    keep = span_mask(reference, t_ref)
     t_ref = t_ref[keep]
     x_d = reference_poses(reference, t_ref)
     x = np.array(measured.poses[keep], dtype=float)
@@ -298,8 +308,10 @@ def judge_relative(
         late = "which one is late is not known beyond the relative latencies searched"
     elif relative_latency_s > 0:
         late = "the internal target late against the surrogate"
-    else:
+    elif relative_latency_s < 0:
         late = "the surrogate late against the internal target"
+    else:
+        late = "neither late"
     if meaningful and not within:
         causes.append(
             f"relative latency {value} beyond --max-relative-latency "
@@ -445,6 +457,7 @@ __all__ = [
     "RelativeJudgement",
     "PairVerification",
     "search_half_width",
+    "span_mask",
     "relative_shift",
     "judge_relative",
     "check_one_clock",

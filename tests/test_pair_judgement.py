@@ -1,0 +1,211 @@
+"""verify's judgement of a pair (surrogate/pair_judgement.py) piece by piece, as a user reads it:
+the verdict's line word for word on each side of its bound and its search's edge, the width
+searched, the refusal of two measurements not on one clock, the samples compared, and the
+pair's JSON key by key. The pair judged whole, on a camera's files, is
+tests/test_relative_latency.py's."""
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.surrogate.pair_judgement import (
+    MIN_INSIDE,
+    RELATIVE_SEARCH_S,
+    _window,
+    check_one_clock,
+    judge_relative,
+    search_half_width,
+    span_mask,
+)
+
+NAMES = ("a.csv", "b.csv")
+HEAD = "a.csv (internal) against b.csv (surrogate) on one clock: "
+
+
+def _judge(tau, bound=0.1, half=1.5, not_following=(None, None), swapped=None):
+    return judge_relative(tau, bound, half, NAMES, not_following, swapped)
+
+
+@pytest.mark.parametrize(
+    "tau, passed, figure",
+    [
+        (0.06, True, "relative latency 60 ms (the internal target late against the surrogate) "
+         "within +-100 ms"),
+        (-0.06, True, "relative latency -60 ms (the surrogate late against the internal target) "
+         "within +-100 ms"),
+        (0.1, True, "relative latency 100 ms (the internal target late against the surrogate) "
+         "within +-100 ms"),  # at the bound: taken
+        (0.0, True, "relative latency 0 ms (neither late) within +-100 ms"),
+    ],
+)  # fmt: skip
+def test_a_relative_latency_within_its_bound_passes_in_one_line(tau, passed, figure):
+    judged = _judge(tau)
+    assert judged.line == f"PASS: {HEAD}{figure}"
+    assert judged.passed and judged.meaningful and not judged.at_edge and judged.causes == []
+    assert judged.relative_latency_s == tau and judged.max_relative_latency_s == 0.1
+
+
+def test_a_relative_latency_beyond_its_bound_fails_naming_which_is_late():
+    judged = _judge(0.1001)
+    cause = (
+        "relative latency 100.1 ms beyond --max-relative-latency 100 ms: the internal target "
+        "late against the surrogate"
+    )
+    assert judged.line == (
+        f"FAIL: {HEAD}relative latency 100.1 ms (the internal target late against the "
+        f"surrogate) beyond +-100 ms; cause: {cause}"
+    )
+    assert not judged.passed and judged.meaningful and judged.causes == [cause]
+    assert _judge(-0.3).causes == [
+        "relative latency -300 ms beyond --max-relative-latency 100 ms: the surrogate late "
+        "against the internal target"
+    ]
+
+
+def test_a_relative_latency_at_the_edge_of_the_search_is_at_least_it():
+    """Within EDGE_S (50 ms) of the half width searched it is at the edge, whatever its bound;
+    50 ms or more inside it is not."""
+    judged = _judge(-1.46, bound=2.0)
+    late = "which one is late is not known beyond the relative latencies searched"
+    cause = (
+        f"relative latency at least -1.46 s beyond --max-relative-latency 2 s: {late} (at the "
+        "edge of the relative latencies searched)"
+    )
+    assert judged.line == (
+        f"FAIL: {HEAD}relative latency at least -1.46 s ({late}) beyond +-2 s; cause: {cause}"
+    )
+    assert judged.at_edge and not judged.passed and judged.causes == [cause]
+    inside = _judge(1.45, bound=2.0)  # 50 ms inside the edge
+    assert inside.passed and not inside.at_edge and "at least" not in inside.line
+
+
+def test_a_relative_latency_of_no_meaning_names_every_cause():
+    judged = _judge(0.02, not_following=(None, "is at rest"), swapped="the files swapped")
+    assert judged.line == (
+        f"FAIL: {HEAD}relative latency 20 ms of no meaning while the cause holds; cause: the "
+        "files swapped; the surrogate is at rest"
+    )
+    assert not judged.meaningful and not judged.passed
+    assert judged.causes == ["the files swapped", "the surrogate is at rest"]
+    both = _judge(0.5, not_following=("moves another way", "is at rest"))
+    assert both.causes == ["the internal target moves another way", "the surrogate is at rest"]
+    assert json.loads(json.dumps(both.as_dict())) == {
+        "passed": False,
+        "line": both.line,
+        "relative_latency_s": 0.5,
+        "max_relative_latency_s": 0.1,
+        "meaningful": False,
+        "at_edge": False,
+        "causes": both.causes,
+    }
+
+
+def test_the_width_searched_is_the_wider_of_its_two_and_below_half_a_breath():
+    assert RELATIVE_SEARCH_S == 1.5
+    once = SimpleNamespace()  # no repeat_period_s: a motion that does not repeat
+    assert search_half_width(once, 0.1) == 1.5
+    assert search_half_width(once, 0.8) == pytest.approx(2.4, rel=1e-12)  # 3 x the bound
+    assert search_half_width(SimpleNamespace(repeat_period_s=4.0), 0.1) == 1.5  # 1.8 > 1.5
+    assert search_half_width(SimpleNamespace(repeat_period_s=2.0), 0.1) == pytest.approx(0.9)
+    assert search_half_width(SimpleNamespace(repeat_period_s=None), 0.1) == 1.5
+
+
+@pytest.mark.parametrize(
+    "t_internal, t_surrogate",
+    [
+        ([0.0, 1.0, 2.0, 10.0], [9.5, 20.0, 21.0, 22.0]),  # overlap 9.5-10: its last sample
+        ([0.0, 1.0, 2.0, 10.0], [-5.0, -4.0, -3.0, 0.5]),  # overlap 0-0.5: its first sample
+        ([9.5, 20.0, 21.0, 22.0], [0.0, 1.0, 2.0, 10.0]),
+        ([-5.0, -4.0, -3.0, 0.5], [0.0, 1.0, 2.0, 10.0]),
+    ],
+)
+def test_two_measurements_overlapping_by_their_end_samples_are_on_one_clock(
+    t_internal, t_surrogate
+):
+    check_one_clock(
+        SimpleNamespace(t=np.array(t_internal), path="a.csv"),
+        SimpleNamespace(t=np.array(t_surrogate), path="b.csv"),
+    )
+
+
+def test_two_measurements_that_only_touch_are_not_on_one_clock():
+    with pytest.raises(InvalidConfigError) as refused:
+        check_one_clock(
+            SimpleNamespace(t=np.array([0.0, 1.0, 2.0]), path="a.csv"),
+            SimpleNamespace(t=np.array([2.0, 3.0, 4.5]), path="b.csv"),
+        )
+    assert str(refused.value) == (
+        "a.csv spans t = 0-2 s and b.csv t = 2-4.5 s: they do not overlap, so they are not on "
+        "one clock; give two measurements made together on one clock (one camera seeing both "
+        "platforms, or instruments sharing a clock)"
+    )
+
+
+def test_the_samples_compared_are_those_inside_the_references_span():
+    t_ref = np.arange(-10, 71) / 10.0  # -1 to 7 s by 0.1 s, 0 and 5 exactly
+    mask = span_mask(SimpleNamespace(end_time=5.0), t_ref)
+    np.testing.assert_array_equal(mask, (t_ref >= 0.0) & (t_ref <= 5.0))
+    assert mask[10] and mask[60] and np.count_nonzero(mask) == 51  # both ends taken
+    np.testing.assert_array_equal(span_mask(SimpleNamespace(), t_ref), t_ref >= 0.0)
+    np.testing.assert_array_equal(span_mask(SimpleNamespace(end_time=None), t_ref), t_ref >= 0.0)
+    # Exactly MIN_INSIDE inside: those alone; one fewer: all of them.
+    assert MIN_INSIDE == 10
+    ten = span_mask(SimpleNamespace(end_time=0.9), t_ref)
+    assert ten.dtype == bool and np.count_nonzero(ten) == 10
+    nine = span_mask(SimpleNamespace(end_time=0.8), t_ref)
+    assert nine.dtype == bool and nine.shape == t_ref.shape and nine.all()
+
+
+def test_a_window_holds_its_ends_and_fills_an_axis_not_measured_with_the_reference():
+    t = np.arange(6, dtype=float)
+    x_d = np.arange(36, dtype=float).reshape(6, 6)
+    x = x_d + 0.5
+    x[:, :5] = np.nan  # Z measured only
+    ver = SimpleNamespace(
+        result=SimpleNamespace(t=t, x=x, x_d=x_d), fidelity={"window_s": (1.0, 4.0)}
+    )
+    tw, xw, xdw = _window(ver)
+    np.testing.assert_array_equal(tw, [1.0, 2.0, 3.0, 4.0])
+    np.testing.assert_array_equal(xdw, x_d[1:5])
+    want = x_d[1:5].copy()
+    want[:, 5] += 0.5
+    np.testing.assert_array_equal(xw, want)
+    assert xw.dtype == float
+
+
+def test_the_pairs_json_holds_every_figure_under_its_name(tmp_path):
+    from test_relative_latency import judge, pair_files
+
+    pair = judge(*pair_files(tmp_path))
+    d = json.loads(json.dumps(pair.as_dict(), allow_nan=False))  # no NaN in the JSON
+    assert set(d) == {
+        "passed", "relative_latency_s", "definition", "internal_shift_s", "surrogate_shift_s",
+        "searched_s", "relative", "internal", "surrogate", "notes",
+    }  # fmt: skip
+    assert d["passed"] is pair.passed is True
+    assert d["relative_latency_s"] == pair.relative_latency_s
+    assert d["internal_shift_s"] == pair.internal_shift_s
+    assert d["surrogate_shift_s"] == pair.surrogate_shift_s
+    assert d["searched_s"] == [-1.5, 1.5] and d["notes"] == pair.notes == []
+    assert d["definition"].startswith("relative latency = the internal target's latency - ")
+    assert d["relative"] == pair.judgement.as_dict()
+    for key, ver, axis in (("internal", pair.internal, 5), ("surrogate", pair.surrogate, 3)):
+        one = d[key]
+        assert set(one) == {
+            "reference", "measured", "axes", "shift_s", "latency_s", "clock", "rms",
+            "window_s", "verdict", "passed", "line",
+        }  # fmt: skip
+        assert one["reference"] == ver.name and one["measured"] == ver.measured.path
+        assert one["axes"] == ver.fidelity["measured"] and one["clock"] == ver.clock
+        assert one["shift_s"] == ver.shift_s and one["latency_s"] == ver.latency_s
+        assert one["window_s"] == list(ver.fidelity["window_s"])
+        assert one["verdict"] == ver.judgement.verdict and one["passed"] is ver.judgement.passed
+        assert one["line"] == ver.judgement.line
+        # The one axis measured keeps its RMS; the five not measured are None, not NaN.
+        assert one["rms"][axis] == ver.fidelity["rms"][axis] and 0 < one["rms"][axis] < 1e-3
+        assert [v is None for v in one["rms"]] == [k != axis for k in range(6)]
+        assert all(math.isnan(ver.fidelity["rms"][k]) for k in range(6) if k != axis)
