@@ -10,6 +10,7 @@ The stream: the library's breathing (15 mm on X, 4 s) sampled at 5 Hz with 0.1 m
 itself needs 0.35 N m and a reference may use 0.632 N m (90 % of the motors' 0.702 N m).
 """
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -309,3 +310,159 @@ def test_the_shapers_record_is_in_its_state():
         t = k * shaper.h
         shaper.step(copy, t, tuple(np.asarray(q) for q in MOTION.evaluate(t)))
     assert shaper.record_of(copy) == b
+
+
+class _Line:
+    """A followed reference moving at a constant rate u from c: x = c + t u, v = u, a = 0."""
+
+    name = "a line"
+    end_time = 12.5
+    stream = object()
+    c, u = np.arange(6.0), np.linspace(0.1, 0.6, 6)
+
+    def evaluate(self, t):
+        t = np.asarray(t, dtype=float).reshape(-1)
+        return self.c + t[:, None] * self.u, np.tile(self.u, (t.size, 1)), np.zeros((t.size, 6))
+
+
+def test_a_shaped_reference_reads_its_periods_at_constant_acceleration_and_the_rest_as_followed():
+    """Periods 0 and 2 of 10 ms shaped, worked out by hand: within a shaped period x + tau v +
+    tau^2 a / 2 and v + tau a from its start; outside them, and before t = 0, the followed."""
+    from stewart_drake.run.shaping import ShapedReference
+
+    line, h = _Line(), 0.01
+    rows = np.zeros((2, 18))
+    rows[0] = np.r_[np.full(6, 1.0), np.full(6, 2.0), np.full(6, 40.0)]
+    rows[1] = np.r_[np.full(6, -1.0), np.full(6, 3.0), np.full(6, -100.0)]
+    shaped = ShapedReference(line, h, [0, 2], rows.tolist(), "the record")
+    assert shaped.name == "a line and shaped" and shaped.end_time == 12.5
+    assert shaped.stream is line.stream and shaped.record == "the record"
+    assert shaped.shaped_periods.dtype == np.int64 and shaped.values.shape == (2, 18)
+
+    def by_hand(t):
+        if 0.0 <= t < h:
+            tau, (x, v, a) = t, (1.0, 2.0, 40.0)
+        elif 2 * h <= t < 3 * h - 1e-12:
+            tau, (x, v, a) = t - 2 * h, (-1.0, 3.0, -100.0)
+        else:
+            return line.evaluate([t])
+        return (np.full((1, 6), x + tau * v + 0.5 * tau**2 * a),
+                np.full((1, 6), v + tau * a), np.full((1, 6), a))  # fmt: skip
+
+    for t in (-1e-12, -0.005, 0.0, 0.005, 0.0099, 0.015, 0.02, 0.025, 0.0299, 0.03, 0.5):
+        for got, want in zip(shaped.evaluate([t]), by_hand(t), strict=True):
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15, err_msg=f"t = {t}")
+    grid = np.array([[0.0, 0.005], [0.025, 0.5]])
+    x, v, a = shaped.evaluate(grid)
+    assert x.shape == v.shape == a.shape == (2, 2, 6)
+    np.testing.assert_allclose(x[1, 0], -1.0 + 0.005 * 3.0 - 0.5 * 0.005**2 * 100.0)
+    none = ShapedReference(line, h, [], np.zeros((0, 18)), "the record")
+    for got, want in zip(none.evaluate(grid), line.evaluate(grid.reshape(-1)), strict=True):
+        np.testing.assert_array_equal(got, want.reshape(2, 2, 6))
+
+
+@pytest.mark.parametrize("duration_s", [0.0, -1.0, float("nan"), float("inf")])
+def test_a_duration_not_finite_and_positive_is_refused(plan, duration_s):
+    from stewart_drake.base.errors import InvalidConfigError
+
+    with pytest.raises(
+        InvalidConfigError, match=rf"^the duration must be > 0 s, got {duration_s!r}$"
+    ):
+        shape_followed(MOTION, shaping_limits(plan), duration_s)
+
+
+def test_half_a_second_is_shaped_over_its_periods_and_three_beyond(plan):
+    shaped = shape_followed(MOTION, shaping_limits(plan), 0.5)
+    # The library's breathing starts at rest and fits: nothing shaped over 500 + 3 periods of
+    # the plan's 1 ms.
+    assert plan.control_period_s == 1e-3
+    assert shaped.record.periods == 503 and shaped.record.shaped == 0
+    assert shaped.record.joined_s == 0.0 and shaped.shaped_periods.size == 0
+
+
+@pytest.fixture
+def shaper(plan):
+    return Shaper(shaping_limits(plan))
+
+
+def test_the_goal_moves_to_the_farthest_admissible_pose_on_its_segment(shaper):
+    """With an admissible set Z <= 0.301 m put in place of the robot's: from Z 0.28 m towards
+    0.32 m in 16ths, 8/16 of the way is the last admissible point (0.30 m; 9/16 is 0.3025)."""
+    from types import SimpleNamespace
+
+    shaper.limits = SimpleNamespace(admissible=lambda poses: np.asarray(poses)[:, 5] <= 0.301)
+    goal, target = np.r_[0, 0, 0, 0, 0, 0.28], np.r_[0.02, 0, 0, 0.04, 0, 0.32]
+    np.testing.assert_allclose(shaper.goal_toward(goal, target), goal + 0.5 * (target - goal))
+    near = np.r_[0, 0, 0, 0.01, 0, 0.29]
+    np.testing.assert_allclose(shaper.goal_toward(goal, near), near)  # all of it admissible
+    far = np.r_[0, 0, 0, 0, 0, 1.0]  # 1/16 of the way is 0.325: none of it
+    np.testing.assert_array_equal(shaper.goal_toward(goal, far), goal)
+    # In quarters: 2/4 of the way (0.30) is the last admissible point (in 49ths, 25/49: 0.3004).
+    np.testing.assert_allclose(shaper.goal_toward(goal, target, points=5)[5], 0.30, rtol=1e-12)
+    # The first point not admissible ends the way, whatever lies beyond it.
+    shaper.limits = SimpleNamespace(
+        admissible=lambda poses: ~np.isclose(np.asarray(poses)[:, 5], 0.28 + 0.04 * 3 / 16)
+    )
+    np.testing.assert_allclose(shaper.goal_toward(goal, target), goal + 2 / 16 * (target - goal))
+
+
+def test_periods_passed_as_followed_leave_the_state_where_the_followed_reference_goes(shaper):
+    x0 = np.asarray(MOTION.evaluate(0.0)[0])
+    state = shaper.initial_state(x0)
+    h = shaper.h
+    x_f, v_f, a_f = x0 + 0.001, np.full(6, 0.02), np.full(6, -3.0)
+    goal = x0 + 0.002
+    state[Shaper.LIMITED] = 2.0
+    shaper.passed(state, 0.25, 7, (x_f, v_f, a_f), goal)
+    np.testing.assert_allclose(state[Shaper.X], x_f + h * v_f + 0.5 * h * h * a_f, rtol=1e-15)
+    np.testing.assert_allclose(state[Shaper.V], v_f + h * a_f, rtol=1e-15)
+    np.testing.assert_array_equal(state[Shaper.GOAL], goal)
+    assert state[Shaper.ON_PATH][0] == state[Shaper.JOINED][0] == 1.0
+    assert state[Shaper.LIMITED][0] == 0.0 and state[Shaper.COUNTER][0] == 7
+    record = shaper.record_of(state)
+    assert record.periods == 7 and record.joined_s == 0.25 and record.shaped == 0
+    state[Shaper.LIMITED] = 2.0
+    shaper.passed(state, 0.5, 3, (x_f, v_f, a_f))  # no check among them: the goal kept
+    np.testing.assert_array_equal(state[Shaper.GOAL], goal)
+    assert state[Shaper.LIMITED][0] == 2.0 and state[Shaper.COUNTER][0] == 10
+    assert shaper.record_of(state).periods == 10 and shaper.record_of(state).joined_s == 0.25
+
+
+@pytest.mark.parametrize(
+    "base, change, limit, scale",
+    [
+        (np.full(6, 0.5), np.full(6, 1.0), 1.0, 0.5),  # (1 - 0.5) / 1
+        (np.full(6, -0.2), np.full(6, -2.0), 1.0, 0.4),  # towards -1: (-1 + 0.2) / -2
+        (np.r_[0.5, 0.9, 0.9, 0.9, 0.9, 0.9], np.r_[1.0, 0, 0, 0, 0, 0], 1.0, 0.5),
+        (np.r_[0.5, -0.9, 0, 0, 0, 0], np.r_[1.0, -0.4, 0, 0, 0, 0], 1.0, 0.25),  # the nearer
+        (np.full(6, 1.0), np.zeros(6), 1.0, 1.0),  # at the limit, not moving: all of it
+        (np.full(6, 0.5), np.full(6, 0.2), 1.0, 1.0),  # within at 1: all of it
+        (np.full(6, 0.5), np.full(6, 1e9), math.inf, 1.0),  # no limit
+        (np.full(6, 1.5), np.full(6, -1.0), 1.0, None),  # over before any change
+        (np.full(6, np.nan), np.zeros(6), 1.0, None),
+        (np.full(6, 0.5), np.full(6, np.nan), 1.0, None),
+    ],
+)
+def test_the_largest_scale_of_a_change_within_a_limit(base, change, limit, scale):
+    from stewart_drake.run.shaping import _largest_scale
+
+    got = _largest_scale(base, change, limit)
+    assert got is None if scale is None else got == pytest.approx(scale, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "field, value, words",
+    [
+        ("period_s", 0.0, "the control period must be > 0, got 0.0"),
+        ("period_s", float("nan"), "the control period must be a number, got nan"),
+        ("period_s", "0.01", "the control period must be a number, got '0.01'"),
+        ("follow_bandwidth_hz", -1.0, "the following bandwidth must be > 0, got -1.0"),
+        ("follow_bandwidth_hz", float("inf"), "the following bandwidth must be a number, got inf"),
+    ],
+)
+def test_shaping_limits_out_of_range_are_refused_word_for_word(plan, field, value, words):
+    from stewart_drake.base.errors import InvalidConfigError
+
+    with pytest.raises(InvalidConfigError) as refused:
+        replace(shaping_limits(plan), **{field: value})
+    assert str(refused.value) == words
