@@ -209,3 +209,38 @@ def test_the_pairs_json_holds_every_figure_under_its_name(tmp_path):
         assert one["rms"][axis] == ver.fidelity["rms"][axis] and 0 < one["rms"][axis] < 1e-3
         assert [v is None for v in one["rms"]] == [k != axis for k in range(6)]
         assert all(math.isnan(ver.fidelity["rms"][k]) for k in range(6) if k != axis)
+
+
+def test_the_pairs_options_reach_verify_as_given(tmp_path):
+    """Without a tolerance, verify's default (0.1 mm); a latency bound, a largest gap and
+    frames given are each the one verify judges with."""
+    from test_relative_latency import DELAY_S, SURROGATE, TRACE, pair_files
+
+    from stewart_drake.organ_motion.measured_motion import read_measured
+    from stewart_drake.organ_motion.verification import DEFAULT_TOLERANCE
+    from stewart_drake.references.traces import load_trace
+    from stewart_drake.surrogate.pair_judgement import verify_pair
+
+    files = pair_files(tmp_path)
+
+    def pair(**options):
+        return verify_pair(
+            load_trace(TRACE),
+            load_trace(SURROGATE),
+            read_measured(files[0], axis_map={"depth": "AP"}),
+            read_measured(files[1], axis_map={"depth": "SI"}),
+            **options,
+        )
+
+    assert DEFAULT_TOLERANCE[0] == 1e-4
+    assert "per axis beyond 0.1 mm | 0.1 deg" in pair().internal.judgement.line  # 0.2 mm noise
+    # The clocks' offset given 0.2 s off: a latency of 0.2 s, within 0.5 s, beyond 0.1 s.
+    offset, wide = -DELAY_S + 0.2, (1e-3, math.radians(1.0))
+    within = pair(clock_offset_s=offset, tolerance=wide).internal
+    assert abs(within.latency_s) == pytest.approx(0.2, abs=0.01)
+    assert within.judgement.latency_judged and within.judgement.passed, within.judgement.line
+    late = pair(clock_offset_s=offset, tolerance=wide, max_latency_s=0.1).internal.judgement
+    assert not late.passed and "latency" in late.line
+    with pytest.raises(InvalidConfigError, match="--measured-max-gap 20 ms"):
+        pair(max_gap_s=0.02)  # the camera's steps are 26.5-36.5 ms
+    assert pair(frame="base").internal.frame.how == "base"
