@@ -29,6 +29,15 @@ def test_the_table_names_existing_modules_and_test_files(module):
         assert Path(test).name.startswith("test_"), test
 
 
+def test_a_module_mutated_with_the_jit_on_has_no_compiled_kernel_of_its_own():
+    """With the JIT on a kernel of the module would run compiled, its mutants unseen: only a
+    module without one may be mutated so."""
+    assert mutation.JIT_ON and mutation.JIT_ON <= set(mutation.MODULES)
+    for module in mutation.JIT_ON:
+        assert "_njit" not in (REPO / module).read_text(), module
+    assert "_njit" in (REPO / "stewart_drake/control/lqi/step.py").read_text()  # the check sees one
+
+
 def test_the_module_names_are_unique_as_the_command_line_gives_them():
     stems = [Path(m).stem for m in mutation.MODULES]
     assert len(stems) == len(set(stems))
