@@ -466,3 +466,72 @@ def test_shaping_limits_out_of_range_are_refused_word_for_word(plan, field, valu
     with pytest.raises(InvalidConfigError) as refused:
         replace(shaping_limits(plan), **{field: value})
     assert str(refused.value) == words
+
+
+def test_a_stretch_passes_up_to_the_next_period_that_may_fail(shaper):
+    """Periods 3..6 of a chunk of 10 pass (7 may fail): the state ends where the followed
+    reference goes after period 6, its goal the pose of the last checked period among them (5),
+    its record 4 periods joined from period 3's time."""
+    from stewart_drake.run.shaping import _pass_stretch
+
+    n = 10
+    t = 2.0 + np.arange(n) * shaper.h
+    x = np.arange(n)[:, None] * 1e-3 + np.arange(6) * 0.1
+    v = np.arange(n)[:, None] * 1e-2 + np.ones(6)
+    a = -np.arange(n)[:, None] + np.zeros(6)
+    check = np.zeros(n, dtype=bool)
+    check[[1, 5, 8]] = True
+    state = shaper.initial_state(x[0])
+    stop = _pass_stretch(shaper, state, 3, t, (x, v, a), np.array([1, 7, 9]), check)
+    assert stop == 7
+    h = shaper.h
+    np.testing.assert_allclose(state[Shaper.X], x[6] + h * v[6] + 0.5 * h * h * a[6], rtol=1e-14)
+    np.testing.assert_allclose(state[Shaper.V], v[6] + h * a[6], rtol=1e-14)
+    np.testing.assert_array_equal(state[Shaper.GOAL], x[5])
+    record = shaper.record_of(state)
+    assert record.periods == 4 and record.joined_s == pytest.approx(t[3], abs=1e-15)
+    # No period after it may fail: to the chunk's end; none checked: the goal kept.
+    state = shaper.initial_state(x[0])
+    assert _pass_stretch(shaper, state, 6, t, (x, v, a), np.array([1]), np.zeros(n, bool)) == n
+    np.testing.assert_array_equal(state[Shaper.GOAL], x[0])
+    np.testing.assert_allclose(state[Shaper.X], x[9] + h * v[9] + 0.5 * h * h * a[9], rtol=1e-14)
+
+
+def test_the_filters_acceleration_by_hand_free_and_in_its_box(shaper):
+    """Unboxed, the following filter's a_t + w^2 (x_t - x) + 2 w (v_t - v) at the limits'
+    following bandwidth; boxed, teleop's bandwidth and the box of accelerations and of the next
+    rate; small enough that no motor's limit scales it."""
+    limits = shaper.limits
+    x = np.asarray(MOTION.evaluate(0.0)[0])
+    v = np.zeros(6)
+    target = (x + np.r_[0, 0, 0, 0, 0, 1e-5], np.full(6, 1e-4), np.full(6, 1e-3))
+    w = min(2 * np.pi * limits.follow_bandwidth_hz, 0.5 / limits.period_s)  # FOLLOW_OMEGA_H
+    from stewart_drake.run.shaping import FOLLOW_OMEGA_H
+
+    assert FOLLOW_OMEGA_H == 0.5
+    wanted = target[2] + w * w * (target[0] - x) + 2 * w * (target[1] - v)
+    a, flags = shaper._acceleration(x, v, target, boxed=False)
+    np.testing.assert_allclose(a, wanted, rtol=1e-12)
+    assert flags == 0
+    w = 2 * np.pi * limits.filter.bandwidth_hz
+    wanted = target[2] + w * w * (target[0] - x) + 2 * w * (target[1] - v)
+    assert np.all(np.abs(wanted) < limits.filter.acceleration)
+    a, flags = shaper._acceleration(x, v, target, boxed=True)
+    np.testing.assert_allclose(a, wanted, rtol=1e-12)
+    assert flags == 0
+    # Far off, boxed: each axis's acceleration at its box, or at what brings the rate to its
+    # limit in one period, whichever is nearer; the flag says it was clipped.
+    acc, rate, h = np.asarray(limits.filter.acceleration), np.asarray(limits.filter.rate), shaper.h
+    v = 0.999 * rate * np.r_[1, -1, 1, -1, 1, -1]
+    far = (x + np.r_[0.1, -0.1, 0.1, -0.1, 0.01, -0.01], np.zeros(6), np.zeros(6))
+    w_f = min(2 * np.pi * limits.follow_bandwidth_hz, 0.5 / limits.period_s)
+    a, flags = shaper._acceleration(x, v, far, boxed=True)
+    wanted = w * w * (far[0] - x) + 2 * w * (0 - v)
+    box = np.clip(np.clip(wanted, -acc, acc), (-rate - v) / h, (rate - v) / h)
+    assert flags & Shaper.CLIPPED_FLAG and not np.allclose(box, wanted)
+    if not flags & Shaper.SCALED_FLAG:
+        np.testing.assert_allclose(a, box, rtol=1e-12)
+    else:  # a motor's limit scaled it: along the same direction, shorter
+        s = a / box
+        assert np.allclose(s, s[0]) and 0 <= s[0] < 1
+    assert not np.allclose(w, w_f)  # the two bandwidths differ, so each is seen
