@@ -397,6 +397,8 @@ def test_the_goal_moves_to_the_farthest_admissible_pose_on_its_segment(shaper):
     np.testing.assert_allclose(shaper.goal_toward(goal, near), near)  # all of it admissible
     far = np.r_[0, 0, 0, 0, 0, 1.0]  # 1/16 of the way is 0.325: none of it
     np.testing.assert_array_equal(shaper.goal_toward(goal, far), goal)
+    one = np.r_[0, 0, 0, 0, 0, 0.6]  # 1/16 of the way (0.3) admissible, 2/16 (0.32) not
+    np.testing.assert_allclose(shaper.goal_toward(goal, one), goal + (one - goal) / 16)
     # In quarters: 2/4 of the way (0.30) is the last admissible point (in 49ths, 25/49: 0.3004).
     np.testing.assert_allclose(shaper.goal_toward(goal, target, points=5)[5], 0.30, rtol=1e-12)
     # The first point not admissible ends the way, whatever lies beyond it.
