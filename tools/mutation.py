@@ -578,9 +578,9 @@ def summary_report(results: list[ModuleResult]) -> str:
     lines = [
         "# Mutation testing of the core numeric modules",
         "",
-        "Written by `python tools/mutation.py` (mutmut, `NUMBA_DISABLE_JIT=1`; how and why in the "
-        "tool's docstring and docs/development.md). Score = (killed + timeouts) / mutants; a "
-        "mutant no selected test calls counts as a survivor.",
+        "Written by `python tools/mutation.py` (mutmut, `NUMBA_DISABLE_JIT=1` but for "
+        "`JIT_ON`; how and why in the tool's docstring and docs/development.md). Score = "
+        "(killed + timeouts) / mutants; a mutant no selected test calls counts as a survivor.",
         "",
     ]
     header = ["module", "tests", "mutants", "killed", "timeouts", "survived", "no tests"]
