@@ -18,7 +18,6 @@ trace's second column less its least value, ``read1Dfile``), on the camera's one
 (:func:`relative_latency`; tests/test_verify_interact.py, tools/interact_relative_latency_table.py).
 """
 
-import argparse
 from pathlib import Path
 
 import numpy as np
@@ -112,15 +111,6 @@ def camera_file(path, time_file, depth_file):
     rows = ["t [s],depth [mm]"] + [f"{float(a)!r},{float(b)!r}" for a, b in zip(t, depth)]
     path.write_text("\n".join(rows) + "\n")
     return path
-
-
-def table_arguments(description: str) -> argparse.Namespace:
-    """The options of a tool that writes a table of these runs into the docs: ``--data`` (a
-    folder holding IntERAct's runs) and ``--docs`` (the page)."""
-    parser = argparse.ArgumentParser(description=description)
-    parser.add_argument("--data", required=True, help="a folder holding IntERAct's runs")
-    parser.add_argument("--docs", default="docs/organ_motion.md")
-    return parser.parse_args()
 
 
 def write_table(docs, markers, header, rows, summary: str) -> None:

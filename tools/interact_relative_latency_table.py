@@ -18,6 +18,7 @@ shift over 0-40 s by 0.05 s as ``IntERAct_data_analysis.m`` searches it, and by 
 ``RMSEAlignMethod.m`` itself steps). About ten seconds a run.
 """
 
+import argparse
 import json
 import sys
 import tempfile
@@ -32,7 +33,6 @@ from interact_method import (  # noqa: E402
     camera_file,
     laboratory_pairs,
     relative_latency,
-    table_arguments,
     write_table,
 )
 
@@ -62,7 +62,10 @@ def judge(trace, resp, time_file, depth_6d, depth_1d, folder: Path) -> dict:
 
 
 def main() -> None:
-    args = table_arguments(__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", required=True, help="a folder holding IntERAct's runs")
+    parser.add_argument("--docs", default="docs/organ_motion.md")
+    args = parser.parse_args()
     pairs = laboratory_pairs(args.data)
     if not pairs:
         raise SystemExit(f"no laboratory runs under {args.data}: see the docstring")

@@ -14,6 +14,7 @@ judged on the trace's third axis, which their analysis compares with it, ``SI_in
 by their method as reimplemented in tests/interact_method.py. A few seconds a run.
 """
 
+import argparse
 import json
 import sys
 import tempfile
@@ -29,7 +30,6 @@ from interact_method import (  # noqa: E402
     camera_file,
     laboratory_runs,
     optimal_shift,
-    table_arguments,
     write_table,
 )
 
@@ -54,7 +54,10 @@ def judge(trace: Path, time_file: Path, depth_file: Path, folder: Path) -> dict:
 
 
 def main() -> None:
-    args = table_arguments(__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", required=True, help="a folder holding IntERAct's runs")
+    parser.add_argument("--docs", default="docs/organ_motion.md")
+    args = parser.parse_args()
     runs = laboratory_runs(args.data)
     if not runs:
         raise SystemExit(f"no laboratory runs under {args.data}: see the docstring")
