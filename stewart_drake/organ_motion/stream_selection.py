@@ -111,11 +111,11 @@ def measure(sources, candidates=CANDIDATES, latencies=LATENCIES, progress=None) 
             for latency in latencies:
                 stream = source.form.apply(stream_of(reference, latency, rate, end))
                 judged = moves_after_warm_up(x_true, t, stream)
-                none = stream_figures(t, x_true, follow(stream, "none").evaluate(t)[0])
+                none = stream_figures(x_true, follow(stream, "none").evaluate(t)[0])
                 moving = np.ptp(stream.poses, axis=0) > 0
                 for c in candidates:
                     followed = follow(stream, c.predictor, c.settings)
-                    f = stream_figures(t, x_true, followed.evaluate(t)[0])
+                    f = stream_figures(x_true, followed.evaluate(t)[0])
                     rows.append({
                         "source": source.name,
                         "case": case.label,
