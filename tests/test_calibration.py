@@ -512,4 +512,6 @@ def test_ctrl_c_during_a_bus_rehearsal_s_drive_exits_130_in_one_line_writing_no_
     assert not (folder / "robot.yaml").exists()
     said = "".join(lines)
     assert "the session did not drive the path: interrupted by SIGINT" in said, said
-    assert "could not be written" not in said, said  # was an IndexError's words, no samples
+    # Was an IndexError's words with no samples. A SIGINT within the first period (a busy
+    # machine) leaves too short a run for its metrics, which is said as such.
+    assert "could not be written" not in said or "too short for metrics" in said, said

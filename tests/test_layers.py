@@ -3,9 +3,10 @@ command. Core: base (errors, checks, the checked reader; the generated LCM types
 (geometry, kinematics, statics, limits) -> plant (the MultibodyPlant, clearance, MuJoCo) ->
 control -> references -> station -> run -> execution. Features above it: viz (replays and
 pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design and
-live; the surrogate (verify's pair, on live's verify) above them; cli on top. The command's shared options (execution.options: argument types, output checks,
-the scenario, trace and runner options), which every feature's command module imports, sit in
-execution, below the features. A package imports its own package or a lower rank, never
+live; the surrogate (verify's pair, on live's verify) above them; cli on top. The command's
+shared options (execution.options: argument types, output checks, the scenario, trace and
+runner options), which every feature's command module imports, sit in execution, below the
+features. A package imports its own package or a lower rank, never
 a higher one nor another package of its own rank. Every import is counted (module level, inside
 functions, under TYPE_CHECKING)."""
 
