@@ -508,16 +508,24 @@ def _check_length(reference: Reference, t: np.ndarray) -> None:
         )
 
 
+def in_span(reference: Reference, t_ref: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """(n,) bool: the times ``t_ref`` (s, the reference's clock) inside its span, ``margin`` s
+    in: [margin, ``end_time`` - margin] (no ``end_time``: from ``margin`` on)."""
+    end = getattr(reference, "end_time", None)
+    top = math.inf if end is None else float(end) - margin
+    return (t_ref >= margin) & (t_ref <= top)
+
+
 def _overlap(reference: Reference, t_ref: np.ndarray, margin: float) -> np.ndarray:
-    """(n,) bool: the times t_ref (s, the reference's) inside its span, ``margin`` s in.
+    """(n,) bool: the times t_ref (s, the reference's) inside its span, ``margin`` s in
+    (:func:`in_span`).
 
     Raises:
         InvalidConfigError: fewer than 10 such times (no overlap).
     """
-    end = getattr(reference, "end_time", None)
-    top = math.inf if end is None else float(end) - margin
-    on = (t_ref >= margin) & (t_ref <= top)
+    on = in_span(reference, t_ref, margin)
     if np.count_nonzero(on) < 10:
+        end = getattr(reference, "end_time", None)
         runs = "from 0 s on" if end is None else f"over 0-{end:.4g} s"
         raise InvalidConfigError(
             f"once aligned, the measured motion spans t = {format_window(t_ref[0], t_ref[-1])} "
@@ -581,6 +589,7 @@ def _outside_words(t_all, t_ref, window, holds_start: bool) -> list:
 
 
 __all__ = [
+    "in_span",
     "MAX_LATENCY_S",
     "SEARCH_FACTOR",
     "DEFAULT_TOLERANCE",

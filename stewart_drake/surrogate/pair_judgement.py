@@ -209,12 +209,14 @@ MIN_INSIDE = 10
 
 def span_mask(reference, t_ref) -> np.ndarray:
     """(n,) bool: which of the times ``t_ref`` (s, on the reference's clock) fall inside the
-    reference's span, [0, its ``end_time``] (no end: from 0 on); all of them when fewer than
-    :data:`MIN_INSIDE` do (a measurement mostly outside is compared whole rather than on a
-    handful of samples)."""
+    reference's span, [0, its ``end_time``] (no end: from 0 on;
+    :func:`~stewart_drake.organ_motion.verification.in_span`, as ``verify`` reads it); all of
+    them when fewer than :data:`MIN_INSIDE` do (a measurement mostly outside is compared whole
+    rather than on a handful of samples)."""
+    from ..organ_motion.verification import in_span
+
     t_ref = np.asarray(t_ref, dtype=float)
-    end = getattr(reference, "end_time", None)
-    use = (t_ref >= 0.0) & (t_ref <= (math.inf if end is None else float(end)))
+    use = in_span(reference, t_ref)
     return use if np.count_nonzero(use) >= MIN_INSIDE else np.ones(len(t_ref), dtype=bool)
 
 
