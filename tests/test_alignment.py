@@ -11,19 +11,16 @@ import numpy as np
 import pytest
 from harmonic_motion import Harmonics, rpy_matrix
 
+from stewart_drake.base.lag import coarse_shift, refine_shift, shift_score, shift_scores
 from stewart_drake.calibration.tracker import emulated_setup
 from stewart_drake.organ_motion import alignment
 from stewart_drake.organ_motion.alignment import (
     Frames,
     axis_weights,
-    coarse_shift,
     platform_poses,
     reference_poses,
     reference_seen,
-    refine_shift,
     registered_frames,
-    shift_score,
-    shift_scores,
 )
 from stewart_drake.robot.geometry import StewartGeometry
 

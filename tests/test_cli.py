@@ -106,38 +106,11 @@ def test_a_csv_reference_sets_the_run_to_its_own_length(tmp_path, capsys):
     )
     result = load_result(tmp_path / "a" / "run_short.npz")
     assert result.t[-1] == pytest.approx(0.24) and result.config_summary["duration_s"] == 0.24
-    assert (
-        cli.main(
-            [
-                "run",
-                "--trajectory-file",
-                str(ref),
-                "--duration",
-                "0.1",
-                "--out",
-                str(tmp_path / "b"),
-                "--no-progress",
-            ]
-        )
-        == 0
-    )
+    run_ref = ["run", "--trajectory-file", str(ref), "--no-progress"]
+    assert cli.main(run_ref + ["--duration", "0.1", "--out", str(tmp_path / "b")]) == 0
     assert load_result(tmp_path / "b" / "run_short.npz").t[-1] == pytest.approx(0.1)
     capsys.readouterr()
-    assert (
-        cli.main(
-            [
-                "run",
-                "--trajectory-file",
-                str(ref),
-                "--duration",
-                "0.5",
-                "--out",
-                str(tmp_path / "c"),
-                "--no-progress",
-            ]
-        )
-        == 2
-    )
+    assert cli.main(run_ref + ["--duration", "0.5", "--out", str(tmp_path / "c")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1  # longer than the file
 
 

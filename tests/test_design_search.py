@@ -297,25 +297,9 @@ def test_the_design_command_writes_a_scenario_every_command_takes(tmp_path, caps
         "motions:\n  - !NamedReference {name: paper}\npayload_kg: 0.5\n",
     )
     out = tmp_path / "out"
-    code = cli.main(
-        [
-            "design",
-            str(path),
-            "--out",
-            str(out),
-            "--motor",
-            "XM540-W270-T",
-            "--generations",
-            "1",
-            "--popsize",
-            "2",
-            "--no-cheapest",
-            "--no-confirm",
-            "--runner",
-            "serial",
-            "--no-progress",
-        ]
-    )
+    one_generation = "--generations 1 --popsize 2 --no-cheapest --no-confirm --runner serial"
+    argv = ["design", str(path), "--out", str(out), "--motor", "XM540-W270-T"]
+    code = cli.main(argv + one_generation.split() + ["--no-progress"])
     assert code == 0
     document = json.loads((out / "designs.json").read_text())
     best = document["chosen"]["objective"]

@@ -123,17 +123,9 @@ def test_a_valid_run_with_a_cold_cache_says_it_compiles_then_what_it_builds_and_
 # design: damaged generations, files that are not what they should be ---------------------------
 
 
-DESIGN = [
-    "--generations",
-    "1",
-    "--popsize",
-    "2",
-    "--no-cheapest",
-    "--no-confirm",
-    "--runner",
-    "serial",
-    "--no-progress",
-]
+DESIGN = (
+    "--generations 1 --popsize 2 --no-cheapest --no-confirm --runner serial --no-progress".split()
+)
 
 
 def _requirements(tmp_path, text="motions:\n  - !NamedReference {name: paper}\n") -> Path:

@@ -25,21 +25,8 @@ def _run(capsys, argv, code=0):
 
 
 def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
-    out, _ = _run(
-        capsys,
-        [
-            "reproduce",
-            "breathing",
-            "--param",
-            "period=1s",
-            "--param",
-            "amplitude=6mm",
-            "--cycles",
-            "1",
-            "--out",
-            str(tmp_path),
-        ],
-    )
+    one_breath = "reproduce breathing --param period=1s --cycles 1".split()
+    out, _ = _run(capsys, one_breath + ["--param", "amplitude=6mm", "--out", str(tmp_path)])
     # The verdict names what it compares: the robot's true pose against the motion asked for.
     judged = "the robot's true pose against the reference (breathing)"
     assert f"PASS: {judged}, RMS error per axis" in out and "wrote" in out
@@ -50,22 +37,7 @@ def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
     assert figures["fidelity"]["window_s"] == pytest.approx([1.0, 2.0], abs=2e-3)
     assert 1e-6 < figures["fidelity"]["rms"][3] < 1e-4
     assert (tmp_path / "reproduce_breathing.png").stat().st_size > 20_000
-    out, _ = _run(
-        capsys,
-        [
-            "reproduce",
-            "breathing",
-            "--param",
-            "period=1s",
-            "--cycles",
-            "1",
-            "--tolerance",
-            "1um,1urad",
-            "--out",
-            str(tmp_path),
-        ],
-        code=2,
-    )
+    out, _ = _run(capsys, one_breath + ["--tolerance", "1um,1urad", "--out", str(tmp_path)], code=2)
     assert f"FAIL: {judged}, RMS error per axis beyond" in out
 
 

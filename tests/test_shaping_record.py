@@ -6,16 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from stewart_drake.run.shaping_record import (
-    CLIPPED_FLAG,
-    LIMITED_FLAG,
-    OVER_FLAG,
-    SCALED_FLAG,
-    SHAPED_FLAG,
-    ShapingRecord,
-    count_joined,
-    count_shaped,
-)
+from stewart_drake.run import shaping_record as flags
+from stewart_drake.run.shaping_record import ShapingRecord, count_joined, count_shaped
 
 H = 0.01
 
@@ -37,13 +29,20 @@ def test_no_period_counts_zero_and_no_time():
 def _counted() -> np.ndarray:
     """Two periods of approach, four joined, then three shaped (module docstring)."""
     r = ShapingRecord.initial_values()
-    count_shaped(r, 0.0, SHAPED_FLAG, None)  # before joining: the approach
-    count_shaped(r, 0.01, SHAPED_FLAG | LIMITED_FLAG, np.ones(6))
+    count_shaped(r, 0.0, flags.SHAPED_FLAG, None)  # before joining: the approach
+    count_shaped(r, 0.01, flags.SHAPED_FLAG | flags.LIMITED_FLAG, np.ones(6))
     count_joined(r, 0.02, 3)
     count_joined(r, 0.05)
-    count_shaped(r, 0.06, SHAPED_FLAG | LIMITED_FLAG | CLIPPED_FLAG, [1e-3, 0, 0, 3e-4, 4e-4, 0])
-    count_shaped(r, 0.07, SHAPED_FLAG | SCALED_FLAG | OVER_FLAG, [0, 5e-4, 0, 1e-4, 0, 0])
-    count_shaped(r, 0.08, SHAPED_FLAG | LIMITED_FLAG, None)
+    count_shaped(
+        r,
+        0.06,
+        flags.SHAPED_FLAG | flags.LIMITED_FLAG | flags.CLIPPED_FLAG,
+        [1e-3, 0, 0, 3e-4, 4e-4, 0],
+    )
+    count_shaped(
+        r, 0.07, flags.SHAPED_FLAG | flags.SCALED_FLAG | flags.OVER_FLAG, [0, 5e-4, 0, 1e-4, 0, 0]
+    )
+    count_shaped(r, 0.08, flags.SHAPED_FLAG | flags.LIMITED_FLAG, None)
     return r
 
 

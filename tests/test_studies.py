@@ -77,15 +77,9 @@ def test_evaluate_keeps_its_rows_and_the_last_report_when_every_case_fails(
     monkeypatch.chdir(tmp_path)  # the guard's default folder is relative
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     out = tmp_path / "out"
+    quick_lqi = dict(runner=SerialRunner(), progress=False, quick=True, controllers=("lqi_1_1",))
     with pytest.raises(IncompleteResultsError, match="cases failed"):
-        evaluation.evaluate(
-            tmp_path / "docs",
-            out,
-            runner=SerialRunner(),
-            progress=False,
-            quick=True,
-            controllers=("lqi_1_1",),
-        )
+        evaluation.evaluate(tmp_path / "docs", out, **quick_lqi)
     assert not (tmp_path / "docs").exists()  # no report of failures only
     rows = sorted((out / "rows").glob("*.json"))
     n = 10 + 7 + 5  # nominal scenarios, conditions, encoder resolutions (hardware base)
@@ -100,51 +94,15 @@ def test_evaluate_keeps_its_rows_and_the_last_report_when_every_case_fails(
     (tmp_path / "docs").mkdir()
     (tmp_path / "docs" / "results.md").write_text("the last good report")
     with pytest.raises(IncompleteResultsError, match=rf"all {n} cases failed \(first: Simulat"):
-        evaluation.evaluate(
-            tmp_path / "docs",
-            out,
-            runner=SerialRunner(),
-            progress=False,
-            quick=True,
-            controllers=("lqi_1_1",),
-        )
+        evaluation.evaluate(tmp_path / "docs", out, **quick_lqi)
     assert (tmp_path / "docs" / "results.md").read_text() == "the last good report"
     assert len(json.loads((out / "rows.json").read_text())["rows"]) == n
-    assert (
-        main(
-            [
-                "evaluate",
-                "--quick",
-                "--no-tuner-study",
-                "--out",
-                str(out),
-                "--docs",
-                str(tmp_path / "docs"),
-                "--controllers",
-                "lqi_1_1",
-                "--no-progress",
-            ]
-        )
-        == 2
-    )
+    argv = ["evaluate", "--no-tuner-study", "--out", str(out), "--docs", str(tmp_path / "docs")]
+    argv += ["--controllers", "lqi_1_1", "--no-progress"]
+    assert main(argv + ["--quick"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the report in" in err[0] and "was not replaced" in err[0]
-    assert (
-        main(
-            [
-                "evaluate",
-                "--no-tuner-study",
-                "--out",
-                str(out),
-                "--docs",
-                str(tmp_path / "docs"),
-                "--controllers",
-                "lqi_1_1",
-                "--no-progress",
-            ]
-        )
-        == 2
-    )  # not --quick
+    assert main(argv) == 2  # not --quick
     assert (
         "holds evaluate results of other settings (quick True there, False here"
         in capsys.readouterr().err

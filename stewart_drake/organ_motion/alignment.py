@@ -17,14 +17,15 @@ frame B, and come from outside the motion judged:
 
 **The clock.** The shift d (measured time + d = the reference's time whose pose a sample shows)
 minimises the weighted mean squared distance between the measured axes and the reference's
-(:func:`shift_scores`: translations in m, rotations weighted by :data:`ROTATION_WEIGHT_M`; each
-axis less its mean difference where the frames remove offsets). It is found coarsely over every
-shift allowed, every shift at once by FFT (:func:`coarse_shift`), then to a fraction of a sample
-by a bounded scalar minimisation of the same score (:func:`refine_shift`): the package's one lag
-search, :mod:`stewart_drake.base.lag` (its functions named here too). The distance is
-measured between what the tracker sees and what the reference makes it see: with a registered
-marker of positions only, the reference's marker point p + R p_EM, not the platform's origin
-(:func:`reference_seen`), so that a marker far from the origin does not pull the clock.
+(:func:`~stewart_drake.base.lag.shift_scores`: translations in m, rotations weighted by
+:data:`ROTATION_WEIGHT_M`; each axis less its mean difference where the frames remove offsets). It
+is found coarsely over every shift allowed, every shift at once by FFT
+(:func:`~stewart_drake.base.lag.coarse_shift`), then to a fraction of a sample by a bounded scalar
+minimisation of the same score (:func:`~stewart_drake.base.lag.refine_shift`): the package's one
+lag search, :mod:`stewart_drake.base.lag`. The distance is measured between what the tracker sees
+and what the reference makes it see: with a registered marker of positions only, the reference's
+marker point p + R p_EM, not the platform's origin (:func:`reference_seen`), so that a marker far
+from the origin does not pull the clock.
 :func:`~.verification.verify` runs these steps and judges the aligned motion.
 """
 
@@ -37,14 +38,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..base.columns import uniform_columns
-from ..base.lag import (
-    REFINE_SAMPLES,
-    best_shift,
-    coarse_shift,
-    refine_shift,
-    shift_score,
-    shift_scores,
-)
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
 from .fidelity import AXES
@@ -217,7 +210,6 @@ def rigid_shift(
 
 __all__ = [
     "ROTATION_WEIGHT_M",
-    "REFINE_SAMPLES",
     "FRAME_KINDS",
     "reference_poses",
     "rigid_shift",
@@ -226,9 +218,4 @@ __all__ = [
     "reference_seen",
     "platform_poses",
     "axis_weights",
-    "shift_scores",
-    "coarse_shift",
-    "shift_score",
-    "refine_shift",
-    "best_shift",
 ]

@@ -222,8 +222,9 @@ def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float
     best further shift within +-``span_s`` (each less its mean): the ratio of the two least mean
     squared distances, reversed over as is (below 1: reversed is nearer; 0: reversed, it matches
     exactly), and the shift at which
-    reversed is nearest (:func:`~.alignment.shift_scores` on that axis alone)."""
-    from .alignment import reference_poses, shift_scores
+    reversed is nearest (:func:`~stewart_drake.base.lag.shift_scores` on that axis alone)."""
+    from ..base.lag import shift_scores
+    from .alignment import reference_poses
 
     y = np.zeros((len(t), 6))
     weights = np.zeros(6)

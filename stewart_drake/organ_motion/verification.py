@@ -53,15 +53,14 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.lag import coarse_shift, refine_shift
 from ..references.motion import Reference
 from .alignment import (
     Frames,
     axis_weights,
-    coarse_shift,
     platform_poses,
     reference_poses,
     reference_seen,
-    refine_shift,
     registered_frames,
 )
 from .fidelity import AXES, fidelity, format_window, startup_figures, time_lag
