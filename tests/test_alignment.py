@@ -14,14 +14,7 @@ from harmonic_motion import Harmonics, rpy_matrix
 from stewart_drake.base.lag import coarse_shift, refine_shift, shift_score, shift_scores
 from stewart_drake.calibration.tracker import emulated_setup
 from stewart_drake.organ_motion import alignment
-from stewart_drake.organ_motion.alignment import (
-    Frames,
-    axis_weights,
-    platform_poses,
-    reference_poses,
-    reference_seen,
-    registered_frames,
-)
+from stewart_drake.organ_motion.alignment import Frames, axis_weights, reference_poses
 from stewart_drake.robot.geometry import StewartGeometry
 
 #: A motion on every axis, two harmonics each so that it repeats every 4 s only, about a pose
@@ -143,7 +136,7 @@ def test_the_frames_as_json_values():
 def test_a_registration_gives_the_trackers_frame_in_the_base_and_the_markers_offset():
     setup = emulated_setup(StewartGeometry())
     reg = setup.registration()
-    f = registered_frames(reg)
+    f = alignment.registered_frames(reg)
     T_TB = setup.X_TB.GetAsMatrix4()
     # X_BT = X_TB^-1: R_BT = R_TB^T, p_BT = -R_TB^T p_TB.
     np.testing.assert_allclose(f.R_BT, T_TB[:3, :3].T, atol=1e-15)
@@ -157,10 +150,10 @@ def test_the_reference_seen_by_a_marker_off_the_platform_is_its_point_not_the_or
     p_EM = np.array([0.03, -0.02, 0.04])
     t = np.array([-1.0, 0.7, 2.9])
     x = MOTION.evaluate(np.clip(t, 0.0, None))[0]
-    got = reference_seen(Frames("registration", p_EM=p_EM), MOTION, t)
+    got = alignment.reference_seen(Frames("registration", p_EM=p_EM), MOTION, t)
     np.testing.assert_allclose(got[:, :3], x[:, :3], atol=0.0)
     np.testing.assert_allclose(got[:, 3:], x[:, 3:] + rpy_matrix(x[:, :3]) @ p_EM, atol=1e-15)
-    np.testing.assert_array_equal(reference_seen(Frames("axes"), MOTION, t), x)
+    np.testing.assert_array_equal(alignment.reference_seen(Frames("axes"), MOTION, t), x)
 
 
 def test_the_platform_is_the_marker_less_its_offset_along_the_references_rotation():
@@ -168,11 +161,11 @@ def test_the_platform_is_the_marker_less_its_offset_along_the_references_rotatio
     x_d = MOTION.evaluate([0.2, 1.3])[0]
     y = np.array([[np.nan] * 3 + [0.1, 0.2, 0.3], [np.nan] * 3 + [-0.1, 0.0, 0.5]])
     before = y.copy()
-    got = platform_poses(Frames("registration", p_EM=p_EM), y, x_d)
+    got = alignment.platform_poses(Frames("registration", p_EM=p_EM), y, x_d)
     np.testing.assert_allclose(got[:, 3:], y[:, 3:] - rpy_matrix(x_d[:, :3]) @ p_EM, atol=1e-15)
     assert np.all(np.isnan(got[:, :3]))
     np.testing.assert_array_equal(y, before)  # the measured poses are not changed
-    same = platform_poses(Frames("axes"), y, x_d)
+    same = alignment.platform_poses(Frames("axes"), y, x_d)
     np.testing.assert_array_equal(same, y)
     assert same is not y
 
