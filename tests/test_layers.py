@@ -158,3 +158,66 @@ def test_pyproject_installs_every_package():
     )
     tree = {".".join(p.parent.relative_to(root).parts) for p in PACKAGE.rglob("__init__.py")}
     assert tree <= listed, f"add to [tool.setuptools] packages: {sorted(tree - listed)}"
+
+
+#: The command line: the modules that may hold an argparse namespace (cli/, a feature's
+#: command.py or NAME_command.py, its options.py or NAME_options.py). What they pass below is
+#: typed: numbers, paths, a scenario, a runner, a reference.
+COMMAND_LINE_NAMES = ("command", "options")
+#: Modules that parse their own ``python -m`` command and hand no namespace on.
+OWN_ENTRY_POINTS = {"stewart_drake.station.bus.emulator"}
+
+
+def _is_command_line(module: str) -> bool:
+    last = module.rsplit(".", 1)[-1]
+    return (
+        _layer(module) == "cli"
+        or module in OWN_ENTRY_POINTS
+        or any(last == n or last.endswith(f"_{n}") for n in COMMAND_LINE_NAMES)
+    )
+
+
+def namespace_readers() -> dict[str, list[str]]:
+    """{module: [what reads a namespace there]}: a parameter named ``args`` (the package's name
+    for a namespace; not ``*args``), a call of ``parse_args``/``parse_known_args``, an import of
+    argparse."""
+    found: dict[str, list[str]] = {}
+    for path in PACKAGE.rglob("*.py"):
+        module = _module_name(path)
+        for node in ast.walk(ast.parse(path.read_text())):
+            what = None
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                named = [
+                    a.arg for a in node.args.posonlyargs + node.args.args + node.args.kwonlyargs
+                ]
+                if "args" in named:
+                    what = f"{node.name}(args)"
+            elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute):
+                if node.func.attr in ("parse_args", "parse_known_args"):
+                    what = node.func.attr
+            elif isinstance(node, ast.Import | ast.ImportFrom):
+                names = [a.name for a in node.names] + [getattr(node, "module", None) or ""]
+                if "argparse" in names:
+                    what = "import argparse"
+            if what:
+                found.setdefault(module, []).append(what)
+    return found
+
+
+def test_no_argparse_namespace_below_the_command_line():
+    """Options are parsed at the command line and reach the domain typed: no module but the
+    command line's (:func:`_is_command_line`) takes, parses or imports argparse's namespace."""
+    below = {m: w for m, w in namespace_readers().items() if not _is_command_line(m)}
+    assert not below, f"an argparse namespace below the command line: {below}"
+
+
+def test_the_namespace_check_sees_a_reader():
+    """The check would pass vacuously if it missed readers: known ones, each kind."""
+    found = namespace_readers()
+    assert "cmd_verify(args)" in found["stewart_drake.live.verify_command"]
+    assert "import argparse" in found["stewart_drake.calibration.calibrate_options"]
+    assert "parse_args" in found["stewart_drake.station.bus.emulator"]
+    assert _is_command_line("stewart_drake.live.follow_command")
+    assert _is_command_line("stewart_drake.execution.trace_options")
+    assert not _is_command_line("stewart_drake.organ_motion.examples")
+    assert not _is_command_line("stewart_drake.live.session")

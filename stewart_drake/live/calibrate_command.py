@@ -16,7 +16,7 @@ import math
 import sys
 from pathlib import Path
 
-from ..calibration.arguments import (
+from ..calibration.calibrate_options import (
     add_identification_arguments,
     add_mode_arguments,
     add_rehearsal_arguments,

@@ -30,10 +30,8 @@ from . import SCENARIO
 def register(sub) -> None:
     """Add the ``reproduce`` and ``examples`` (:mod:`.examples`) commands to ``sub``, the
     ``stewart-drake`` subparsers."""
-    from .examples import add_examples_command
-
     _add_reproduce_command(sub)
-    add_examples_command(sub)
+    _add_examples_command(sub)
 
 
 def _add_reproduce_command(sub) -> None:
@@ -517,3 +515,30 @@ def _feedforward_choice(args, scenario):
         check_output(args.save_learned, "--save-learned", is_file=True)
     ff.validate(scenario.control_period_s)
     return ff
+
+
+def _add_examples_command(sub) -> None:
+    """Add the ``examples`` command to ``sub``, the ``stewart-drake`` subparsers."""
+    ex = sub.add_parser(
+        "examples",
+        help="copy small example inputs (a tracker's exports, a registration, an encoder log, "
+        "traces) into a folder, to try the documented commands on",
+    )
+    ex.add_argument(
+        "folder",
+        nargs="?",
+        default=".",
+        metavar="DIR",
+        help="where to copy them (default: the current folder); a file there of an example's "
+        "name is replaced only if this command wrote it",
+    )
+    ex.set_defaults(func=_cmd_examples)
+
+
+def _cmd_examples(args) -> int:
+    """``stewart-drake examples``: copy the examples, one line per file written."""
+    from .examples import copy_examples
+
+    for path, size, what in copy_examples(args.folder):
+        print(f"wrote {path} ({size / 1e3:.0f} kB): {what}")
+    return 0

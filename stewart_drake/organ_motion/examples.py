@@ -142,28 +142,3 @@ def copy_examples(folder) -> list[tuple[Path, int, str]]:
     manifest = json.dumps({"written_by": "stewart-drake examples", "files": written}, indent=1)
     atomic_write(folder / MANIFEST, lambda f: f.write(manifest.encode() + b"\n"))
     return done
-
-
-def add_examples_command(sub) -> None:
-    """Add the ``examples`` command to ``sub``, the ``stewart-drake`` subparsers."""
-    ex = sub.add_parser(
-        "examples",
-        help="copy small example inputs (a tracker's exports, a registration, an encoder log, "
-        "traces) into a folder, to try the documented commands on",
-    )
-    ex.add_argument(
-        "folder",
-        nargs="?",
-        default=".",
-        metavar="DIR",
-        help="where to copy them (default: the current folder); a file there of an example's "
-        "name is replaced only if this command wrote it",
-    )
-    ex.set_defaults(func=_cmd_examples)
-
-
-def _cmd_examples(args) -> int:
-    """``stewart-drake examples``: copy the examples, one line per file written."""
-    for path, size, what in copy_examples(args.folder):
-        print(f"wrote {path} ({size / 1e3:.0f} kB): {what}")
-    return 0

@@ -8,7 +8,7 @@ from functools import partial
 from pathlib import Path
 
 from ..base.errors import InvalidConfigError
-from ..live.verification import ENCODER_LOG_SUFFIX
+from ..live.verify_command import ENCODER_LOG_SUFFIX
 from ..organ_motion.fidelity import AXES
 from ..organ_motion.measured_verdict import (
     seconds,
@@ -23,9 +23,9 @@ MODEL = "model"
 
 def register(sub) -> None:
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers: the motion
-    judged alone (:func:`stewart_drake.live.verification.add_verify_command`) or, with these
+    judged alone (:func:`stewart_drake.live.verify_command.add_verify_command`) or, with these
     options (:func:`add_pair_arguments`), with its surrogate on one clock."""
-    from ..live.verification import add_verify_command
+    from ..live.verify_command import add_verify_command
 
     add_pair_arguments(add_verify_command(sub))
 
@@ -101,7 +101,7 @@ def add_pair_arguments(vp) -> None:
 
 def is_encoder_log(path) -> bool:
     """Whether ``path`` names a robot run's encoder log (its name ends in
-    :data:`~stewart_drake.live.verification.ENCODER_LOG_SUFFIX`, as ``robot`` writes it): given
+    :data:`~stewart_drake.live.verify_command.ENCODER_LOG_SUFFIX`, as ``robot`` writes it): given
     to ``--measured`` it is read as ``verify`` alone reads it (the platform by forward
     kinematics), given to ``--measured-surrogate`` for its surrogate's carriage ``s``."""
     return str(path).endswith(ENCODER_LOG_SUFFIX)

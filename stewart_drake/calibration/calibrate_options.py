@@ -1,6 +1,7 @@
-"""The options of ``stewart-drake calibrate`` (:mod:`~.command`): the modes and the files they
-take, the identification's settings and the rehearsal's, with the argument types that check
-them (a tracker's noise with its units, the rest at each pose) before any work."""
+"""The options of ``stewart-drake calibrate`` (:mod:`stewart_drake.live.calibrate_command`): the
+modes and the files they take, the identification's settings and the rehearsal's, with the
+argument types that check them (a tracker's noise with its units, the rest at each pose) before
+any work."""
 
 from __future__ import annotations
 
