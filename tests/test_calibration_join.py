@@ -8,7 +8,7 @@ import pytest
 from stewart_drake.calibration import files, join, poses
 from stewart_drake.calibration.tracker import MeasurementNoise, emulated_setup, track
 from stewart_drake.cli import main as cli
-from stewart_drake.live.homing import HomingReference
+from stewart_drake.references.homing import HomingReference
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.robot.kinematics import X_HOME
 

@@ -3,7 +3,7 @@ command. Core: base (errors, checks, the checked reader; the generated LCM types
 (geometry, kinematics, statics, limits) -> plant (the MultibodyPlant, clearance, MuJoCo) ->
 control -> references -> station -> run -> execution. Features above it: viz (replays and
 pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design and
-live; the surrogate (verify's pair, on live's verify) above them; cli on top. The command's
+live (the robot live, and verify with its surrogate's pair); cli on top. The command's
 shared options (execution.options: argument types, output checks, the scenario, trace and
 runner options), which every feature's command module imports, sit in execution, below the
 features. A package imports its own package or a lower rank, never
@@ -36,8 +36,7 @@ LAYERS = {
     "evaluation": 10,
     "design": 10,
     "live": 10,
-    "surrogate": 11,
-    "cli": 12,
+    "cli": 11,
 }
 #: Modules ranked apart from their package (a key of LAYERS): ``python -m stewart_drake`` is the
 #: command, beside cli; a module imported from below its package's rank moves down to a package

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.surrogate.pair_judgement import (
+from stewart_drake.live.pair_judgement import (
     MIN_INSIDE,
     RELATIVE_SEARCH_S,
     _window,
@@ -216,10 +216,10 @@ def test_the_pairs_options_reach_verify_as_given(tmp_path):
     frames given are each the one verify judges with."""
     from test_relative_latency import DELAY_S, SURROGATE, TRACE, pair_files
 
+    from stewart_drake.live.pair_judgement import verify_pair
     from stewart_drake.organ_motion.measured_motion import read_measured
     from stewart_drake.organ_motion.verification import DEFAULT_TOLERANCE
     from stewart_drake.references.traces import load_trace
-    from stewart_drake.surrogate.pair_judgement import verify_pair
 
     files = pair_files(tmp_path)
 

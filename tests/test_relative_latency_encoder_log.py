@@ -22,14 +22,14 @@ from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration import tracker
 from stewart_drake.calibration.join import write_encoder_log
 from stewart_drake.cli.main import main
+from stewart_drake.live.external_reference import model_reference
+from stewart_drake.live.pair_command import read_encoder_pair
+from stewart_drake.live.pair_judgement import verify_pair
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.references.traces import load_trace
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
-from stewart_drake.surrogate.external_reference import model_reference
-from stewart_drake.surrogate.pair_command import read_encoder_pair
-from stewart_drake.surrogate.pair_judgement import verify_pair
 
 GEOMETRY = robot_geometry(load_scenario("phantom_hardware"))
 INTERNAL = make_motion("breathing", {})
@@ -383,11 +383,11 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
         pytest.skip(extra_missing("robot"))
     from stewart_drake.control.lqi.driver import LqiDriver
     from stewart_drake.live.session import end_line, run_on_robot
-    from stewart_drake.live.surrogate_axis import load_surrogate
     from stewart_drake.references.organ.library import OrganMotionReference
     from stewart_drake.robot.kinematics import X_HOME
     from stewart_drake.run.scenario import Scenario
     from stewart_drake.station.bus.servos import DynamixelBusConfig, SurrogateServoConfig
+    from stewart_drake.station.surrogate.carriage import load_surrogate
 
     stage, period = SurrogateServoConfig(), 0.01
     resp = tmp_path / "resp.txt"

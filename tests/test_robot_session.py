@@ -15,9 +15,9 @@ from conftest import HANG_S, LOADED_MACHINE_BUS, require_extra
 require_extra("robot")
 
 from stewart_drake.base.errors import InvalidConfigError, StartPoseError  # noqa: E402
-from stewart_drake.live.homing import HomingReference  # noqa: E402
 from stewart_drake.live.measure import measure_pose, pose_verdict  # noqa: E402
 from stewart_drake.live.watchdog import LoopWatchdog  # noqa: E402
+from stewart_drake.references.homing import HomingReference  # noqa: E402
 from stewart_drake.references.trajectories import paper_manoeuvre  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.plan import make_plan  # noqa: E402

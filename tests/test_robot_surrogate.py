@@ -32,7 +32,6 @@ require_extra("robot")
 
 from stewart_drake.base.errors import InvalidConfigError  # noqa: E402
 from stewart_drake.live.session import end_line, run_on_robot  # noqa: E402
-from stewart_drake.live.surrogate_axis import load_surrogate  # noqa: E402
 from stewart_drake.references.trajectories import NamedReference  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.scenario import Scenario  # noqa: E402
@@ -43,6 +42,7 @@ from stewart_drake.station.bus.servos import (  # noqa: E402
     DynamixelBusConfig,
     SurrogateServoConfig,
 )
+from stewart_drake.station.surrogate.carriage import load_surrogate  # noqa: E402
 from stewart_drake.station.surrogate.linear_stage import LinearStage  # noqa: E402
 
 CRANKS = [1, 2, 3, 4, 5, 6]

@@ -1,8 +1,8 @@
 """The one reader of the external surrogate's file, for the Diagram's stage
 (:func:`~stewart_drake.station.surrogate.pairs.load_external`, ``reproduce --surrogate``) and the
-robot's (:func:`~stewart_drake.live.surrogate_axis.load_surrogate`, ``robot --surrogate``): the
-same displacement from either, against the file's own numbers, and the same refusals, each
-naming its command's options."""
+robot's (:func:`~stewart_drake.station.surrogate.carriage.load_surrogate`, ``robot
+--surrogate``): the same displacement from either, against the file's own numbers, and the same
+refusals, each naming its command's options."""
 
 import math
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
-from stewart_drake.live.surrogate_axis import load_surrogate
+from stewart_drake.station.surrogate.carriage import load_surrogate
 from stewart_drake.station.surrogate.pairs import load_external
 from stewart_drake.station.surrogate.trace import load_surrogate_trace
 

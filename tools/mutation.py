@@ -124,7 +124,7 @@ MODULES = {
     "stewart_drake/station/surrogate/lag_matching.py": ("tests/test_lag_matching.py",),
     "stewart_drake/station/surrogate/lag_matched_goal.py": ("tests/test_lag_matching.py",),
     "stewart_drake/station/surrogate/linear_stage.py": ("tests/test_surrogate_servo.py",),
-    "stewart_drake/surrogate/pair_judgement.py": (
+    "stewart_drake/live/pair_judgement.py": (
         "tests/test_relative_latency.py",
         "tests/test_pair_judgement.py",
     ),

@@ -2,8 +2,8 @@
 search for every lag the package measures.
 
 Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.alignment`), the pair's relative
-latency on measurements (``verify --surrogate``, :mod:`stewart_drake.surrogate.pair_judgement`) and
-its swap test (:mod:`stewart_drake.surrogate.pair_causes`), a reproduced pair's lags and its
+latency on measurements (``verify --surrogate``, :mod:`stewart_drake.live.pair_judgement`) and
+its swap test (:mod:`stewart_drake.live.pair_causes`), a reproduced pair's lags and its
 external's lead (:mod:`stewart_drake.station.surrogate.sync_figures`) and the robot's lags from its
 encoders (:mod:`stewart_drake.station.surrogate.encoder_relative_latency`). Not yet through it:
 ``reproduce``'s lag of the achieved motion (:func:`stewart_drake.organ_motion.fidelity.time_lag`, a

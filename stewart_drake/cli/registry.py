@@ -19,9 +19,9 @@ from ..design import command as design_command
 from ..evaluation import command as evaluation_command
 from ..live import calibrate_command
 from ..live import command as live_command
+from ..live import pair_command as surrogate_pair
 from ..organ_motion import command as organ_motion_command
 from ..paper import command as paper_command
-from ..surrogate import pair_command as surrogate_pair
 from ..tuner import command as tuner_command
 from ..viz import command as viz_command
 from . import core

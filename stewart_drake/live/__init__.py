@@ -4,4 +4,5 @@ our watchdog, :mod:`.watchdog`), teleoperation in Meshcat (``teleop``), the robo
 bus emulator of :mod:`stewart_drake.station.bus.emulator`, which rehearses both
 (:mod:`.plant_backend`, in a process of its own :mod:`.emulator_process`), a calibration
 rehearsed over it (:mod:`.calibration_rehearsal`), and a run's measured motion judged against
-its reference (``verify``, :mod:`.verify_command`)."""
+its reference (``verify``, :mod:`.verify_command`), alone or with its surrogate on one clock
+(``verify --surrogate``: :mod:`.pair_judgement`, :mod:`.pair_command`, :mod:`.pair_report`)."""

@@ -26,7 +26,7 @@ from .robot_options import add_drive_arguments, add_session_arguments
 def register(sub) -> None:
     """Add the ``teleop`` and ``robot`` commands to ``sub``, the ``stewart-drake`` subparsers
     (``verify``, whose parser is :mod:`.verify_command`'s, is added with its surrogate's options
-    by :func:`stewart_drake.surrogate.pair_command.register`)."""
+    by :func:`stewart_drake.live.pair_command.register`)."""
     _add_teleop_command(sub)
     _add_robot_command(sub)
 
@@ -214,7 +214,7 @@ def _cmd_robot(args) -> int:
 
 def _robot_surrogate(args):
     """``robot --surrogate EXTERNAL``: the surrogate's trace read and checked
-    (:func:`~.surrogate_axis.load_surrogate`), or None without the option.
+    (:func:`~stewart_drake.station.surrogate.carriage.load_surrogate`), or None without the option.
 
     Raises:
         InvalidConfigError: with --teleop, --follow-lcm, --dry-run or --calibrate (a surrogate
@@ -238,7 +238,7 @@ def _robot_surrogate(args):
         raise InvalidConfigError(
             f"--surrogate drives the surrogate beside a reference run, not with {given[0]}"
         )
-    from .surrogate_axis import load_surrogate
+    from ..station.surrogate.carriage import load_surrogate
 
     return load_surrogate(args.surrogate)
 

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..base.errors import InvalidConfigError, StartPoseError, StewartError
-from .homing import HOME_S, HomingReference
+from ..references.homing import HOME_S, HomingReference
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
 from .realtime import RealtimeLoop
 from .session_signals import SessionSignals, signal_name
@@ -130,9 +130,11 @@ def run_on_robot(
         realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks (SCHED_FIFO, a core
             of its own, memory locked, the garbage collector between periods); what the OS
             refuses is said in one line (``say``) and the run goes on.
-        surrogate: the external surrogate's trace (:class:`~.surrogate_axis.SurrogateTrace`,
-            :func:`~.surrogate_axis.load_surrogate`), driven on the servo of ``bus.surrogate``
-            on the platform's clock (:class:`~.surrogate_axis.SurrogateCommand`), its whole
+        surrogate: the external surrogate's trace
+            (:class:`~stewart_drake.station.surrogate.trace.SurrogateTrace`,
+            :func:`~stewart_drake.station.surrogate.carriage.load_surrogate`), driven on the
+            servo of ``bus.surrogate`` on the platform's clock
+            (:class:`~stewart_drake.station.surrogate.carriage.SurrogateCommand`), its whole
             path checked against the stage's travel and speed before the torque goes on; the
             encoder log gains its columns and the run its relative latency. None: a surrogate's
             servo on the bus holds where it was read.
@@ -253,16 +255,16 @@ def _run(
 
 
 def _command_surrogate(driver, surrogate, homed, scenario) -> None:
-    """Give the driver's surrogate its command on the run's clock from where its carriage was
-    read (:class:`~.surrogate_axis.SurrogateCommand`, sampled on the control period's grid
-    over the run's ``duration_s``), the whole path, lead-in included, checked against the
-    stage first.
+    """Give the driver's surrogate its command on the run's clock from where its carriage was read
+    (:class:`~stewart_drake.station.surrogate.carriage.SurrogateCommand`, sampled on the control
+    period's grid over the run's ``duration_s``), the whole path, lead-in included, checked
+    against the stage first.
 
     Raises:
         InvalidConfigError: the carriage rests outside the travel, or the lead-in is too fast.
     """
     from ..station.surrogate.bus_servo import check_surrogate_path
-    from .surrogate_axis import SurrogateCommand
+    from ..station.surrogate.carriage import SurrogateCommand
 
     drive, period_s = driver.surrogate, scenario.control_period_s
     command = SurrogateCommand(surrogate, homed, drive.held[0])

@@ -24,7 +24,7 @@ ENCODER_LOG_SUFFIX = "_encoders.csv"
 def add_verify_command(sub):
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers; returns its
     parser (its surrogate's options are added to it by
-    :func:`stewart_drake.surrogate.pair_command.register`)."""
+    :func:`stewart_drake.live.pair_command.register`)."""
     from ..organ_motion import SCENARIO
 
     vp = sub.add_parser(

@@ -7,7 +7,7 @@ of it is C2. :func:`smoothstep` gives S, S' and S''; :func:`smooth_ramp` its int
 whose slope rises smoothly from 0 to 1. Users: the organ-motion library's rounded corners,
 drifts, excursions and breath-hold (:mod:`~.organ`), the tuner study's min-jerk segments and
 tremor fades (:mod:`~stewart_drake.tuner.tasks`) and the robot session's homing ramp
-(:class:`~stewart_drake.live.homing.HomingReference`).
+(:class:`~stewart_drake.references.homing.HomingReference`).
 """
 
 import numpy as np

@@ -8,13 +8,13 @@ from functools import partial
 from pathlib import Path
 
 from ..base.errors import InvalidConfigError
-from ..live.verify_command import ENCODER_LOG_SUFFIX
 from ..organ_motion.fidelity import AXES
 from ..organ_motion.measured_verdict import (
     seconds,
 )
 from .pair_judgement import MAX_RELATIVE_LATENCY_S, verify_pair
 from .pair_report import write_pair
+from .verify_command import ENCODER_LOG_SUFFIX
 
 #: ``--surrogate``'s word for the motion's external signal made by a correlation model
 #: (:func:`~.external_reference.model_reference`) instead of a recorded file.
@@ -25,7 +25,7 @@ def register(sub) -> None:
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers: the motion
     judged alone (:func:`stewart_drake.live.verify_command.add_verify_command`) or, with these
     options (:func:`add_pair_arguments`), with its surrogate on one clock."""
-    from ..live.verify_command import add_verify_command
+    from .verify_command import add_verify_command
 
     add_pair_arguments(add_verify_command(sub))
 

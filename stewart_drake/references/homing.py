@@ -1,6 +1,6 @@
 """The reference a run on the robot follows: a homing lead-in from where the robot rests to the
 reference's start, then the reference itself, started and ended at rest (:class:`HomingReference`,
-which :func:`~.session.run_on_robot` checks whole before anything is powered)."""
+which :func:`~stewart_drake.live.session.run_on_robot` checks whole before anything is powered)."""
 
 import numpy as np
 

@@ -2,26 +2,25 @@
 run's clock beside the platform's reference (``stewart-drake robot INTERNAL --surrogate
 EXTERNAL``).
 
-:func:`load_surrogate` reads the external file through the one reader of it, the Diagram's
-too (:func:`~stewart_drake.station.surrogate.trace.load_surrogate_trace`, on the checked
-reader of traces; IntERAct's ``Resp/`` 2-column files are its "surrogate" format, the
-displacement in mm on SI) and keeps its one displaced axis
-(:class:`~stewart_drake.station.surrogate.trace.SurrogateTrace`): the carriage's position
-``s`` (m) is that displacement, centred on its mean (the stage's mid-travel).
-:class:`SurrogateCommand` puts it on the run's clock exactly as
-:class:`~.homing.HomingReference` puts the platform's: the same lead-in (a quintic from where
-the carriage was read to the trace's start, in the same ``home_s``), then the trace on the same
-warped clock tau(t), ended at rest at the same time; so the two references are one clock's, and
-whatever differs between the two motions measured is the two loops' (their relative latency:
-:mod:`~.encoder_relative_latency`).
+:func:`load_surrogate` reads the external file through the one reader of it, the Diagram's too
+(:func:`~stewart_drake.station.surrogate.trace.load_surrogate_trace`, on the checked reader of
+traces; IntERAct's ``Resp/`` 2-column files are its "surrogate" format, the displacement in mm on
+SI) and keeps its one displaced axis
+(:class:`~stewart_drake.station.surrogate.trace.SurrogateTrace`): the carriage's position ``s`` (m)
+is that displacement, centred on its mean (the stage's mid-travel). :class:`SurrogateCommand` puts
+it on the run's clock exactly as :class:`~stewart_drake.references.homing.HomingReference` puts the
+platform's: the same lead-in (a quintic from where the carriage was read to the trace's start, in
+the same ``home_s``), then the trace on the same warped clock tau(t), ended at rest at the same
+time; so the two references are one clock's, and whatever differs between the two motions measured
+is the two loops' (their relative latency: :mod:`~.encoder_relative_latency`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..station.surrogate.trace import SurrogateTrace, load_surrogate_trace
-from .homing import HomingReference
+from ...references.homing import HomingReference
+from .trace import SurrogateTrace, load_surrogate_trace
 
 
 def load_surrogate(path) -> SurrogateTrace:
@@ -45,7 +44,8 @@ class SurrogateCommand:
 
     Args:
         surrogate: the :class:`SurrogateTrace`. homed: the platform's
-            :class:`~.homing.HomingReference` (its lead-in, end and ramps are taken).
+            :class:`~stewart_drake.references.homing.HomingReference` (its lead-in, end and
+            ramps are taken).
         s_start: the carriage's position read before the torque goes on, m.
     """
 
@@ -111,7 +111,8 @@ def _line_pose(s: float) -> np.ndarray:
 
 class _Line:
     """A :class:`SurrogateTrace` as a 6-D reference (``s`` in the X slot) for
-    :class:`~.homing.HomingReference`, which warps and leads in every coordinate alike."""
+    :class:`~stewart_drake.references.homing.HomingReference`, which warps and leads in every
+    coordinate alike."""
 
     def __init__(self, surrogate: SurrogateTrace):
         self.surrogate = surrogate
