@@ -17,9 +17,8 @@ import sys
 from ..analysis import command as analysis_command
 from ..design import command as design_command
 from ..evaluation import command as evaluation_command
-from ..live import calibrate_command
+from ..live import calibrate_command, pair_command
 from ..live import command as live_command
-from ..live import pair_command as surrogate_pair
 from ..organ_motion import command as organ_motion_command
 from ..paper import command as paper_command
 from ..tuner import command as tuner_command
@@ -35,7 +34,7 @@ COMMANDS = (
     evaluation_command,  # evaluate
     design_command,  # design
     live_command,  # teleop, robot
-    surrogate_pair,  # verify
+    pair_command,  # verify, alone or with its surrogate
     calibrate_command,  # calibrate
     viz_command,  # diagrams
     core,  # scenario, sdf, mjcf
