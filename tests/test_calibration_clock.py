@@ -47,10 +47,12 @@ def session(tmp_path_factory):
     return _session(tmp_path_factory.mktemp("clock"), seed=3)
 
 
-def test_a_tracker_on_its_own_clock_is_put_on_the_robots_to_a_millisecond(session):
+def test_a_tracker_on_its_own_clock_is_put_on_the_robots_to_a_tenth_of_a_millisecond(session):
+    """3 us off here (16 us at most on seeds 3, 5 and 11): the coarse step alone is up to half
+    its 0.1 s grid off, a fine step that did not refine would be seen."""
     poses_csv, windows_csv, log, tracker = session
     estimated = join.join(log, tracker, windows_csv, "estimate", poses_csv)
-    assert abs(estimated.clock_offset_s - OFFSET) < 1e-3
+    assert abs(estimated.clock_offset_s - OFFSET) < 1e-4
     assert estimated.clock.samples > 1000
     assert estimated.clock.residual_m < 3e-5  # the tracker's noise: 5 um, 20 urad x 0.15 m
     # The measurements are the join's on the true offset, given.

@@ -2,12 +2,12 @@
 search for every lag the package measures.
 
 Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.alignment`), the pair's relative
-latency on measurements (``verify --surrogate``, :mod:`stewart_drake.live.pair_judgement`) and
-its swap test (:mod:`stewart_drake.live.pair_causes`), a reproduced pair's lags and its
-external's lead (:mod:`stewart_drake.station.surrogate.sync_figures`) and the robot's lags from its
-encoders (:mod:`stewart_drake.station.surrogate.encoder_relative_latency`). Not yet through it:
-``reproduce``'s lag of the achieved motion (:func:`stewart_drake.organ_motion.fidelity.time_lag`, a
-normalised cross-correlation) and the calibration's clock (:mod:`stewart_drake.calibration.clock`).
+latency on measurements (``verify --surrogate``, :mod:`stewart_drake.live.pair_judgement`) and its
+swap test (:mod:`stewart_drake.live.pair_causes`), a reproduced pair's lags and its external's
+lead (:mod:`stewart_drake.station.surrogate.sync_figures`), the robot's lags from its encoders
+(:mod:`stewart_drake.station.surrogate.encoder_relative_latency`), ``reproduce``'s lag of the
+achieved motion (:func:`stewart_drake.organ_motion.fidelity.time_lag`) and a tracker's clock
+against the robot computer's (:mod:`stewart_drake.calibration.clock`).
 
 The method is IntERAct's (``RMSEAlignMethod.m``, ``findOptimalShift``; Kaczynska et al. 2026):
 the shift of least RMS difference, a constant offset removed, here without their 0.05 s grid.

@@ -6,12 +6,16 @@ A tracker on its own computer stamps its samples on its own clock; the join
 the encoder log is known from the line's ``t_path``, and the tracker followed the platform.
 :func:`estimate_clock_offset` finds the offset d (tracker time + d = robot time) in two steps:
 
-1. **coarse**: the cross-correlation (by FFT) of the two speed profiles, each sampled every
-   :data:`COARSE_DT_S` over its own clock's span: d to a sample, whatever its size (a tracker
-   that stamps the time since its own start is millions of seconds off);
+1. **coarse**: the d of least RMS distance between the two speed profiles, each sampled every
+   :data:`COARSE_DT_S` over its own clock's span (the path's speed 0 off its span), over every
+   offset at which the two spans meet: d to a sample, whatever its size (a tracker that stamps
+   the time since its own start is millions of seconds off);
 2. **fine**: the d within two coarse samples of it that minimises the RMS distance between the
-   tracked poses and the planned ones at t + d (scipy's bounded scalar minimisation, to
-   :data:`FINE_TOL_S`).
+   tracked poses on the path and the planned ones at t + d, to a microsecond.
+
+Both are the package's one lag search (:mod:`stewart_drake.base.lag`: every shift at once by FFT
+in :func:`~stewart_drake.base.lag.coarse_shift`, then scipy's bounded scalar minimisation in
+:func:`~stewart_drake.base.lag.refine_shift`).
 
 The planned pose stands for the robot's: the robot follows the path within its calibration
 errors (millimetres, a constant the fit does not trade against time) and its controller's lag
@@ -28,16 +32,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.signal import correlate, correlation_lags
 
 from ..base.columns import interp_columns
 from ..base.errors import InvalidConfigError
+from ..base.lag import coarse_shift, refine_shift
 
 #: The coarse step's sampling period, s: the path's moves last a second or more.
 COARSE_DT_S = 0.1
-#: The fine step's tolerance on the offset, s.
-FINE_TOL_S = 1e-4
 #: Longest span of either clock the estimate samples, s (a day: 864,000 coarse samples).
 MAX_SPAN_S = 86400.0
 #: A rotation's weight against a translation, m per rad (a point 0.15 m from the axis).
@@ -90,11 +91,12 @@ def poses_at(t, t_known, x_known) -> np.ndarray:
     return interp_columns(t, t_known, x_known)
 
 
-def _speeds(t: np.ndarray, x: np.ndarray, span: float) -> np.ndarray:
-    """The weighted speed (m/s) of poses x (n, 6) at times t, every COARSE_DT_S from t[0]."""
+def _speeds(t: np.ndarray, x: np.ndarray, span: float) -> tuple[np.ndarray, np.ndarray]:
+    """(times (k,) s, speeds (k,) m/s): the weighted speed of poses x (n, 6) at times t over
+    each COARSE_DT_S from t[0], at the start of each."""
     grid = t[0] + COARSE_DT_S * np.arange(int(span / COARSE_DT_S) + 1)
     sampled = poses_at(grid, t, x)
-    return np.linalg.norm(np.diff(sampled, axis=0) * _WEIGHT, axis=1) / COARSE_DT_S
+    return grid[:-1], np.linalg.norm(np.diff(sampled, axis=0) * _WEIGHT, axis=1) / COARSE_DT_S
 
 
 def estimate_clock_offset(robot_t, planned, tracker_t, tracked) -> ClockOffset:
@@ -115,34 +117,38 @@ def estimate_clock_offset(robot_t, planned, tracker_t, tracked) -> ClockOffset:
     tracked = np.asarray(tracked, float).reshape(len(tracker_t), 6)
     if np.any(np.diff(robot_t) <= 0) or np.any(np.diff(tracker_t) <= 0):
         raise InvalidConfigError(f"the clocks' times must increase line by line; {_REMEDY}")
-    v_robot = _speeds(robot_t, planned, _checked_span("path in the encoder log", robot_t))
-    v_tracker = _speeds(tracker_t, tracked, _checked_span("tracker file", tracker_t))
+    g_robot, v_robot = _speeds(robot_t, planned, _checked_span("path in the encoder log", robot_t))
+    g_tracker, v_tracker = _speeds(tracker_t, tracked, _checked_span("tracker file", tracker_t))
     for what, v in (("path", v_robot), ("tracker", v_tracker)):
         if not np.max(v) >= MIN_PEAK_SPEED:
             raise InvalidConfigError(
                 f"the {what} never moves (its speed stays under {MIN_PEAK_SPEED * 1e3:g} mm/s): "
                 f"the clock offset is found from the motion both saw; {_REMEDY}"
             )
-    c = correlate(v_robot - v_robot.mean(), v_tracker - v_tracker.mean(), "full", "fft")
-    lag = correlation_lags(len(v_robot), len(v_tracker), "full")[int(np.argmax(c))]
-    coarse = float(robot_t[0] - tracker_t[0] + lag * COARSE_DT_S)
+
+    def path_speed(times):  # the path's speed at robot times, 0 off its span (at rest)
+        return np.interp(times, g_robot, v_robot, left=0.0, right=0.0)[:, None]
+
+    # Every offset at which the two spans meet.
+    span = (g_robot[0] - g_tracker[-1], g_robot[-1] - g_tracker[0])
+    coarse = coarse_shift(
+        g_tracker, v_tracker[:, None], np.ones(1), path_speed, span, COARSE_DT_S, False
+    )
+
+    def planned_at(times):
+        return poses_at(times, robot_t, planned)
 
     def mean_square(d: float) -> tuple[float, int]:
         on = (tracker_t + d >= robot_t[0]) & (tracker_t + d <= robot_t[-1])
-        at = tracker_t[on] + d
-        gap = tracked[on] - poses_at(at, robot_t, planned)
+        gap = tracked[on] - planned_at(tracker_t[on] + d)
         count = int(on.sum())
         return (float(np.mean(np.sum((gap * _WEIGHT) ** 2, axis=1))) if count else np.inf), count
 
-    # Over the correction to the coarse offset: the bounded search's tolerance is relative to
-    # its variable too, and an offset of 1.7e9 s would leave it seconds wide.
-    best = minimize_scalar(
-        lambda u: mean_square(coarse + u)[0],
-        bounds=(-2 * COARSE_DT_S, 2 * COARSE_DT_S),
-        method="bounded",
-        options={"xatol": FINE_TOL_S},
-    )
-    d = coarse + float(best.x)
+    # The fine step compares the tracked samples on the path at the coarse offset.
+    on = (tracker_t + coarse >= robot_t[0]) & (tracker_t + coarse <= robot_t[-1])
+    d = coarse
+    if np.count_nonzero(on) >= 2:
+        d = refine_shift(tracker_t[on], tracked[on], _WEIGHT, planned_at, d, 2 * COARSE_DT_S, False)
     ms, count = mean_square(d)
     if count < MIN_OVERLAP:
         raise InvalidConfigError(

@@ -3,8 +3,8 @@ the true platform pose.
 
 :func:`fidelity` measures a run against its reference over a window: RMS and peak error per axis
 (um and urad, and as a fraction of each axis's peak-to-peak motion), the time lag (sub-sample, by
-cross-correlation), the amplitude and phase error at each harmonic of the breathing and cardiac
-frequencies, and the error of every cycle; :func:`verdict` holds it against a tolerance
+the package's one lag search), the amplitude and phase error at each harmonic of the breathing
+and cardiac frequencies, and the error of every cycle; :func:`verdict` holds it against a tolerance
 (:func:`parse_tolerance`). The run that is measured is :mod:`~.reproduction`'s
 (``stewart-drake reproduce``), its report :mod:`~.fidelity_report`'s. The poses are the plant's
 (the true platform), never the controller's estimate.
@@ -18,7 +18,6 @@ import re
 import numpy as np
 
 from ..base.errors import InvalidConfigError
-from ..base.signals import parabolic_peak
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -26,7 +25,7 @@ MOVING_P2P = (5e-5, 5e-5, 5e-5, 1e-5, 1e-5, 1e-5)
 #: A harmonic is reported when its reference amplitude exceeds this share of the axis's
 #: peak to peak.
 HARMONIC_SHARE = 0.01
-#: Largest lag searched by the cross-correlation, s.
+#: Largest lag searched, s.
 MAX_LAG_S = 0.1
 
 #: The phantom anchor: a built 6-DOF Stewart motion phantom replaying recorded tumour motion
@@ -96,55 +95,34 @@ def time_lag(
     max_lag_s: float = MAX_LAG_S,
     weights=None,
 ) -> float:
-    """The delay of ``achieved`` behind ``reference`` (s, > 0: late), sub-sample.
-
-    The cross-correlation of the two (means removed; ``scipy.signal.correlate``) peaks at the
-    delay. The inner part of ``achieved`` (all but ``max_lag_s`` at each end) is correlated
-    with the whole reference, so every lag sums the same samples of it, and each lag's sum is
-    divided by the norm of the reference's samples it met (Cauchy-Schwarz: the peak is then
-    where the two match): an overlap or a norm that changed with the lag would tilt the broad
-    peak of a slow motion by far more than a sample. A parabola
-    through the peak and its two neighbours places it between samples. Returns NaN for a
-    reference that does not move or a window shorter than three times ``max_lag_s``.
+    """The delay of ``achieved`` behind ``reference`` (s, > 0: late), sub-sample: the package's
+    one lag search (:func:`~stewart_drake.base.lag.signal_lag`: the shift of least RMS
+    difference, each column less its mean difference, over the samples more than ``max_lag_s``
+    from either end, every shift on the samples' grid by FFT, then to a microsecond). The
+    columns are weighed by ``weights`` first, so that each counts by its weight and not by its
+    size. Returns NaN for a reference that does not move or a window shorter than three times
+    ``max_lag_s`` (a search as wide as the samples compared).
 
     Args:
-        t: (n,) evenly spaced times, s. achieved, reference: (n,) or (n, c) signals (columns
-            summed in the correlation: one lag for several axes). weights: (c,) factors of the
-            columns (default 1).
+        t: (n,) increasing times, s. achieved, reference: (n,) or (n, c) signals (one lag for
+            every column). weights: (c,) factors of the columns (default 1).
     Raises:
         InvalidConfigError: signals of another length than ``t`` or of different shapes.
     """
-    from scipy.signal import correlate
+    from ..base.lag import signal_lag
 
-    a, r = np.asarray(achieved), np.asarray(reference)
+    a, r = np.asarray(achieved, dtype=float), np.asarray(reference, dtype=float)
     if a.shape != r.shape or len(a) != len(t):
         raise InvalidConfigError(
             f"time_lag needs two signals of the same shape, one row per time: t has {len(t)}, "
             f"achieved {a.shape}, reference {r.shape}"
         )
-    a, r = a.reshape(len(t), -1), r.reshape(len(t), -1)
-    w = np.ones(a.shape[1]) if weights is None else np.asarray(weights, dtype=float)
-    dt = float(np.median(np.diff(t)))
-    L = max(1, int(round(max_lag_s / dt)))
-    # A column at a time, in float64 (a long run's intermediates are (n,) vectors), by direct
-    # sums over the 2 L + 1 lags (no FFT buffers of twice the run's length, and faster).
-    c, r2, moves = np.zeros(2 * L + 1), np.zeros(len(t)), False
-    for k in range(a.shape[1]):
-        rk = np.asarray(r[:, k], dtype=float) * w[k]
-        rk -= rk.mean()
-        ak = np.asarray(a[:, k], dtype=float) * w[k]
-        ak -= ak.mean()
-        moves = moves or bool(np.any(rk))
-        if len(t) >= 3 * L:
-            c += correlate(rk, ak[L : len(t) - L], mode="valid", method="direct")
-            r2 += rk * rk  # c[j]: achieved late by L - j
-    if not moves or len(t) < 3 * L:
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2 or t[-1] - t[0] < 3 * max_lag_s * (1 - 1e-9) - float(np.median(np.diff(t))):
         return math.nan
-    energy = correlate(r2, np.ones(len(t) - 2 * L), mode="valid", method="direct")
-    c = c / np.sqrt(np.maximum(energy, 1e-300))  # the reference's part that was summed
-    k = int(np.argmax(c))
-    delta = parabolic_peak(*c[k - 1 : k + 2]) if 0 < k < len(c) - 1 else 0.0
-    return float((L - k - delta) * dt)
+    w = np.ones(a.reshape(len(t), -1).shape[1]) if weights is None else np.asarray(weights, float)
+    a, r = a.reshape(len(t), -1) * w, r.reshape(len(t), -1) * w
+    return signal_lag(t, a, r, max_lag_s, offsets=True, min_samples=2)[0]
 
 
 def harmonic_phasors(t: np.ndarray, signals: np.ndarray, frequencies_hz) -> np.ndarray:
