@@ -353,6 +353,45 @@ def test_the_lag_at_the_edges_of_its_search():
         assert math.isnan(fd.time_lag(t[:n], late[:n], ref[:n], max_lag_s=0.01)), n
 
 
+def test_the_lag_is_found_past_a_constant_offset():
+    """10 mm of offset on a 4.2 ms lag over 7.3 s (not whole cycles): each axis less its mean
+    difference, the lag is the delay to 2 us; compared as it is, the offset pulls the search to
+    12 ms (base.lag without offsets)."""
+    motion = make_motion("breathing_heartbeat", {"period": "4s"})
+    t = np.arange(0.0, 7.3, 1e-3)
+    ref = motion.evaluate(t)[0][:, 3]
+    late = motion.evaluate(t - 0.0042)[0][:, 3] + 0.01
+    assert fd.time_lag(t, late, ref) == pytest.approx(0.0042, abs=2e-6)
+
+
+def test_the_lag_of_the_fewest_samples_it_measures():
+    """Four samples 10 ms apart and a search of 9.9 ms: two lie inside its margins, a lag is
+    measured (inside the search); three samples hold one: NaN, not an error."""
+    t = np.arange(4) * 0.01
+    lag = fd.time_lag(t, np.sin(30 * t - 0.1), np.sin(30 * t), max_lag_s=0.0099)
+    assert 0.0 < lag <= 0.0099
+    assert math.isnan(fd.time_lag(t[:3], np.sin(30 * t[:3] - 0.1), np.sin(30 * t[:3]), 0.0099))
+    assert math.isnan(fd.time_lag(t[:2], t[:2], t[:2], 1e-4))
+    assert math.isnan(fd.time_lag(t[:0], t[:0], t[:0]))
+
+
+@pytest.mark.parametrize(
+    "t0, t1, text",
+    [
+        (4.0, 19.98, "4-19.98"),  # 16 s: two decimals, trailing zeros left out
+        (259200.0, 259230.5, "259200-259230.5"),  # far from zero: every digit before the point
+        (0.0, 1234.5678, "0-1235"),  # 1235 s: no decimal
+        (0.0, 0.123456, "0-0.1235"),  # 0.12 s: four decimals
+        (5.12345, 5.12345, "5.123-5.123"),  # no length: three decimals
+        (-0.2, 1.5, "-0.2 to 1.5"),  # an end negative: "to", not a dash
+        (1.0, -0.5, "1 to -0.5"),
+        (-0.00001, 2.0, "0-2"),  # a negative zero is zero
+    ],
+)
+def test_a_window_is_written_with_the_digits_that_tell_its_ends_apart(t0, t1, text):
+    assert fd.format_window(t0, t1) == text
+
+
 def test_the_gamma_index_of_textbook_cases():
     """A trace on its reference passes everywhere; a still reference missed by exactly the
     distance criterion gives gamma = 1, which passes, and by twice it fails; a motion 4 samples

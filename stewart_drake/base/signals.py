@@ -10,9 +10,9 @@ that axis; a motion along a diagonal has the diagonal, where the coordinate that
 measured along it (:func:`principal_displacement`, :func:`~.lag.signal_lag`).
 
 **The parabolic refinement** of a sampled peak (:func:`parabolic_peak`): the vertex of the
-parabola through the largest sample and its two neighbours, between samples. Every sampled peak
-the package places finer than its step goes through it: a lag's cross-correlation, a period's
-spectrum.
+parabola through the largest sample and its two neighbours, between samples: a period's
+spectrum (:func:`dominant_period`). A lag is refined by the one lag search instead
+(:mod:`~.lag`).
 
 **The dominant period** of a sampled motion (:func:`dominant_period`): the period of its
 strongest spectral peak, with the share of its power the peak holds; the Kalman predictor's

@@ -100,8 +100,9 @@ def time_lag(
     difference, each column less its mean difference, over the samples more than ``max_lag_s``
     from either end, every shift on the samples' grid by FFT, then to a microsecond). The
     columns are weighed by ``weights`` first, so that each counts by its weight and not by its
-    size. Returns NaN for a reference that does not move or a window shorter than three times
-    ``max_lag_s`` (a search as wide as the samples compared).
+    size. Returns NaN for a reference that does not move, for fewer samples than three times
+    ``max_lag_s`` holds (in steps, at least one: the search no wider than the samples it
+    compares) or for fewer than two samples inside the search's margins.
 
     Args:
         t: (n,) increasing times, s. achieved, reference: (n,) or (n, c) signals (one lag for
@@ -118,7 +119,11 @@ def time_lag(
             f"achieved {a.shape}, reference {r.shape}"
         )
     t = np.asarray(t, dtype=float)
-    if len(t) < 2 or t[-1] - t[0] < 3 * max_lag_s * (1 - 1e-9) - float(np.median(np.diff(t))):
+    if len(t) < 3:  # no sample inside the margins of any search
+        return math.nan
+    steps = max(1, round(max_lag_s / float(np.median(np.diff(t)))))
+    inner = (t >= t[0] + max_lag_s) & (t <= t[-1] - max_lag_s)
+    if len(t) < 3 * steps or np.count_nonzero(inner) < 2:
         return math.nan
     w = np.ones(a.reshape(len(t), -1).shape[1]) if weights is None else np.asarray(weights, float)
     a, r = a.reshape(len(t), -1) * w, r.reshape(len(t), -1) * w

@@ -167,7 +167,7 @@ def _axis_lines(fid: dict) -> list:
         f"{_figure(fid['rms_rotation_rad'] * 1e6, 'urad')} (peaks "
         f"{fid['peak_translation_m'] * 1e6:.3g} um, "
         f"{_figure(fid['peak_rotation_rad'] * 1e6, 'urad')}); lag of the whole motion "
-        f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late).",
+        f"{1e3 * fid['lag_all_s']:.3g} ms (least RMS difference, > 0: late).",
     ]
     return lines
 
