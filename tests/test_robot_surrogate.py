@@ -491,9 +491,17 @@ def test_interact_pairs_emulated_move_within_one_period_of_each_other(tmp_path, 
     on the run's clock: with lag matching (the default) their relative latency is within one
     control period, whatever the platform's own lag; the carriage's servo follows the command
     it is given within a tenth of a period and 0.1 mm RMS."""
+    from stewart_drake.references.traces import load_trace
+
     judged = _interact_run(tmp_path, pair).relative_latency
     print(f"{pair[0]}: {judged.line()}")
-    assert judged.platform_axis in ("X", "Z")  # SI or AP: where the internal trace moves most
+    # The platform judged along where the internal trace moves most: the first principal axis of
+    # its translations over the seconds driven (numpy's SVD here), to within a degree.
+    folder = Path(INTERACT) / "Traces" / "LARK & SABR TRACES" / "LIGHT SABR traces"
+    trace = folder / "LIGHT SABR traces" / "Internal" / pair[0]
+    p = load_trace(trace).evaluate(np.arange(0.0, INTERACT_SECONDS, 0.01))[0][:, 3:]
+    v = np.linalg.svd(p - p.mean(axis=0), full_matrices=False)[2][0]
+    assert abs(float(np.dot(judged.platform_direction, v))) > np.cos(np.radians(1.0))
     assert abs(judged.relative_s) <= PERIOD_S and judged.passed
     assert abs(judged.servo_lag_s) < 0.1 * PERIOD_S and judged.surrogate_rms_m < 1e-4
     # The carriage's lag is the delay it was given (and its servo's), not a figure of its own:

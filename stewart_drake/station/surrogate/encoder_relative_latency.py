@@ -36,12 +36,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from ...base.errors import InvalidConfigError
 from ...base.lag import signal_lag
-from ...base.signals import direction_words, principal_direction
+from ...base.signals import direction_words
+from .sync_figures import pair_lags
 
 #: The longest lag searched, s.
 MAX_LAG_S = 0.5
@@ -190,29 +192,35 @@ def relative_latency(
         raise InvalidConfigError(f"tolerance_s must be > 0 s, got {tolerance_s}")
     window = t >= t_from
     t_w = t[window]
-    # Along the principal direction of the reference's translations over the window, the one
-    # the Diagram's pair report and lag matching use (base/signals.py).
-    u = principal_direction(x_c[window]) if len(t_w) >= 2 else np.array([0.0, 0.0, 1.0])
-    lag_p, rms_p = axis_lag(
-        t_w, x_m[window, 3:] @ u, x_c[window, 3:] @ u, max_lag_s, still_below=20 * x_count_m
-    )
     s_m, s_c = np.asarray(s_measured, dtype=float), np.asarray(s_commanded, dtype=float)
     if s_m.shape != t.shape or s_c.shape != t.shape:
         raise InvalidConfigError(
             f"the surrogate's samples must be ({t.size},), got {s_m.shape} and {s_c.shape}"
         )
     still = 20 * s_count_m
-    servo_lag = math.nan
+    servo_lag, s_judged = math.nan, s_c
     if s_reference is not None:
-        s_r = np.asarray(s_reference, dtype=float)
-        if s_r.shape != t.shape:
+        s_judged = np.asarray(s_reference, dtype=float)
+        if s_judged.shape != t.shape:
             raise InvalidConfigError(
-                f"the surrogate's reference must be ({t.size},), got {s_r.shape}"
+                f"the surrogate's reference must be ({t.size},), got {s_judged.shape}"
             )
         servo_lag, _ = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=still)
-        lag_s, rms_s = axis_lag(t_w, s_m[window], s_r[window], max_lag_s, still_below=still)
-    else:
-        lag_s, rms_s = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=still)
+    # The Diagram's pair report's lags (sync_figures.pair_lags, the one definition): the
+    # platform's along the principal direction of its reference's translations over the window,
+    # the one lag matching uses too.
+    u, (lag_p, rms_p), (lag_s, rms_s) = pair_lags(
+        t_w,
+        x_c[window],
+        x_m[window],
+        s_judged[window],
+        s_m[window],
+        max_lag_s,
+        still_internal=20 * x_count_m,
+        still_external=still,
+        min_samples=MIN_SAMPLES,
+    )
+    u = cast(np.ndarray, u)  # poses given: a direction found, never None
     inner = (t_w >= t_w[0] + max_lag_s) & (t_w <= t_w[-1] - max_lag_s)
     delay = math.nan
     if delays_s is not None:

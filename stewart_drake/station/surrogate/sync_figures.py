@@ -38,6 +38,15 @@ def _uniform(t: np.ndarray) -> float:
     return h
 
 
+def _inner_of(t: np.ndarray, max_s: float) -> None:
+    """Refuse samples not uniform, or fewer than 8 more than ``max_s`` from either end."""
+    h = _uniform(t)
+    k = max(int(np.ceil(max_s / h)), 1)
+    inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
+    if inner.sum() < 8:
+        raise InvalidConfigError(f"a lag of up to {max_s:g} s needs a longer record")
+
+
 def lag_s(t, commanded, measured, max_s: float = 0.5) -> float:
     """How late ``measured`` is behind ``commanded``, s: the shift d in [-max_s, max_s] that
     makes measured(t) - commanded(t - d) least in RMS once their mean difference (a constant
@@ -51,48 +60,94 @@ def lag_s(t, commanded, measured, max_s: float = 0.5) -> float:
         InvalidConfigError: too few samples, or not uniform.
     """
     t = np.asarray(t, float)
-    h = _uniform(t)
-    k = max(int(np.ceil(max_s / h)), 1)
-    inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
-    if inner.sum() < 8:
-        raise InvalidConfigError(f"a lag of up to {max_s:g} s needs a longer record")
+    _inner_of(t, max_s)
     c = np.asarray(commanded, float).reshape(len(t), -1)
     m = np.asarray(measured, float).reshape(len(t), -1)
     return signal_lag(t, m, c, max_s, offsets=True, min_samples=8)[0]
 
 
+def pair_lags(
+    t,
+    internal,
+    internal_measured,
+    external,
+    external_measured,
+    max_s: float,
+    *,
+    still_internal: float = 0.0,
+    still_external: float = 0.0,
+    min_samples: int = 8,
+) -> tuple[np.ndarray | None, tuple[float, float], tuple[float, float]]:
+    """Each motion's lag behind its command, the internal's along its principal direction: the
+    one definition of what a relative latency subtracts (module docstring), the Diagram's pair
+    report's (:func:`relative_latency`) and the robot's session's
+    (:func:`~stewart_drake.station.surrogate.encoder_relative_latency.relative_latency`).
+
+    Each lag by the package's one lag search
+    (:func:`~stewart_drake.base.lag.signal_lag`, a constant offset removed) within +-``max_s``
+    over the samples more than ``max_s`` from either end; the internal's along the principal
+    direction (:func:`~stewart_drake.base.signals.principal_direction`) of its command's
+    translations.
+
+    Args:
+        t: (n,) s, increasing, the one clock of both.
+        internal, internal_measured: (n, 6) poses or (n, 3) translations, m, as commanded
+            and as reproduced; or (n,) a displacement already along one direction.
+        external, external_measured: (n,) the surrogate as commanded and as reproduced, m.
+        max_s: the largest lag searched, s.
+        still_internal, still_external: a command that moves at most this peak to peak, m, has
+            no lag (NaN).
+        min_samples: the fewest samples compared.
+    Returns:
+        (u, (d_i, rms_i), (d_e, rms_e)): the (3,) direction the internal's lag is measured along
+        (None for a displacement given along one; Z for fewer than 2 samples), each lag, s
+        (> 0: late), and the RMS residual at it, m.
+    Raises:
+        InvalidConfigError: as :func:`~stewart_drake.base.lag.signal_lag`'s; a principal
+            direction of non-finite samples.
+    """
+    c = np.asarray(internal, float)
+    u = None
+    if c.ndim == 2:
+        u = principal_direction(c) if len(c) >= 2 else np.array([0.0, 0.0, 1.0])
+        m = np.asarray(internal_measured, float)
+        c = (c[:, 3:6] if c.shape[1] == 6 else c) @ u
+        internal_measured = (m[:, 3:6] if m.shape[1] == 6 else m) @ u
+    lags = [
+        signal_lag(
+            t, measured, commanded, max_s, offsets=True, still_below=still, min_samples=min_samples
+        )
+        for commanded, measured, still in (
+            (c, internal_measured, still_internal),
+            (external, external_measured, still_external),
+        )
+    ]
+    return u, lags[0], lags[1]
+
+
 def relative_latency(
     t, internal, internal_measured, external, external_measured, max_s: float = 0.5
 ) -> dict:
-    """The relative latency of a pair, the one definition (module docstring): the internal
-    target's lag along its principal direction (:func:`~stewart_drake.base.signals.
-    principal_direction` of its command's translations) less the surrogate's, each by
-    :func:`lag_s` (a constant offset removed). The robot's session measures its own with the
-    same (:func:`~stewart_drake.station.surrogate.encoder_relative_latency.relative_latency`).
+    """The relative latency of a pair (module docstring): the internal target's lag less the
+    surrogate's, each as :func:`pair_lags` measures it, on samples at a uniform step.
 
     Args:
         t: (n,) uniform s, the one clock of both.
-        internal, internal_measured: (n, 6) poses or (n, 3) translations, m, of the internal
-            target as commanded and as reproduced; or (n,) a displacement already along one
-            direction.
-        external, external_measured: (n,) the surrogate as commanded and as reproduced, m.
+        internal, internal_measured, external, external_measured: as :func:`pair_lags`'s.
         max_s: the largest lag searched, s.
     Returns:
         {"lag_internal_s", "lag_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
         (> 0: the internal late), and "direction": the (3,) direction the internal's lag is
         measured along (None for a displacement given along one).
     Raises:
-        InvalidConfigError: as :func:`lag_s`; a principal direction of non-finite samples.
+        InvalidConfigError: fewer than 8 samples, not uniform, or fewer than 8 inside the
+            search's margins; a principal direction of non-finite samples.
     """
-    c = np.asarray(internal, float)
-    u = None
-    if c.ndim == 2:
-        u = principal_direction(c)
-        m = np.asarray(internal_measured, float)
-        c = (c[:, 3:6] if c.shape[1] == 6 else c) @ u
-        internal_measured = (m[:, 3:6] if m.shape[1] == 6 else m) @ u
-    d_i = lag_s(t, c, internal_measured, max_s)
-    d_e = lag_s(t, external, external_measured, max_s)
+    t = np.asarray(t, float)
+    _inner_of(t, max_s)
+    u, (d_i, _), (d_e, _) = pair_lags(
+        t, internal, internal_measured, external, external_measured, max_s
+    )
     return {
         "lag_internal_s": d_i,
         "lag_external_s": d_e,
