@@ -8,10 +8,11 @@ out of it removes the torque:
 2. the servos are configured with the torque off and their settings read back
    (:meth:`~stewart_drake.station.bus.driver.DynamixelBus.configure`);
 3. the pose is measured (encoders -> forward kinematics) and the run's reference gets a homing
-   lead-in from that pose to the reference's start (:class:`~.homing.HomingReference`); that
-   whole path, the measured pose first, passes every check of the admissible set
-   (:func:`~stewart_drake.run.plan.check_reference`: reach, joint ranges,
-   singularities, clearance, the motors' torque and speed) or nothing is powered;
+   lead-in from that pose to the reference's start
+   (:class:`~stewart_drake.references.homing.HomingReference`); that whole path, the measured
+   pose first, passes every check of the admissible set
+   (:func:`~stewart_drake.run.plan.check_reference`: reach, joint ranges, singularities,
+   clearance, the motors' torque and speed) or nothing is powered;
 4. only then the torque is enabled, and the Diagram runs at real time behind our watchdog
    (:class:`~.watchdog.LoopWatchdog`) and the servos' own bus watchdog;
 5. the end, whatever ends it (the reference's end, Ctrl-C, SIGTERM, a bus error, a missed
