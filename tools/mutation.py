@@ -230,9 +230,12 @@ def scratch_copy(module: str, tests: tuple, folder: Path) -> None:
     target.write_text("".join(line for line in lines if not _NJIT_LINE.match(line)))
 
 
-def run_mutmut(folder: Path, label: str, jit: bool = False) -> tuple[int, str]:
+def run_mutmut(
+    folder: Path, label: str, jit: bool = False, limit_s: float = MODULE_TIMEOUT_S
+) -> tuple[int, str]:
     """Run ``mutmut run`` in ``folder`` with the JIT off (on with ``jit``: :data:`JIT_ON`), at
-    low priority, showing its progress as a tqdm bar; returns (exit code, its output)."""
+    low priority, showing its progress as a tqdm bar, stopped after ``limit_s``; returns (exit
+    code, its output)."""
     env = dict(os.environ, NUMBA_DISABLE_JIT="0" if jit else "1")
     mutmut = [sys.executable, "-m", "mutmut", "run"]
     process = subprocess.Popen(
@@ -257,7 +260,7 @@ def run_mutmut(folder: Path, label: str, jit: bool = False) -> tuple[int, str]:
             bar.total = total
             bar.n = done
             bar.refresh()
-        if time.monotonic() - start > MODULE_TIMEOUT_S:
+        if time.monotonic() - start > limit_s:
             process.kill()
             break
     bar.close()
@@ -338,12 +341,14 @@ def _natural(name: str) -> tuple:
     return (base, int(n) if n.isdigit() else 0)
 
 
-def run_module(module: str, tests: tuple, work: Path) -> ModuleResult:
+def run_module(
+    module: str, tests: tuple, work: Path, limit_s: float = MODULE_TIMEOUT_S
+) -> ModuleResult:
     """Mutate ``module`` against ``tests`` in a scratch copy under ``work``."""
     folder = work / Path(module).stem
     scratch_copy(module, tests, folder)
     start = time.monotonic()
-    code, output = run_mutmut(folder, Path(module).stem, jit=module in JIT_ON)
+    code, output = run_mutmut(folder, Path(module).stem, module in JIT_ON, limit_s)
     seconds = time.monotonic() - start
     try:
         result = read_results(module, tests, folder)
@@ -673,7 +678,17 @@ def main(argv=None) -> int:
     parser.add_argument(
         "--before", type=Path, help="an earlier run's --json, whose scores the report gives too"
     )
+    parser.add_argument(
+        "--limit",
+        type=float,
+        default=MODULE_TIMEOUT_S,
+        metavar="S",
+        help=f"the longest a module's run may take, s (default {MODULE_TIMEOUT_S}; a module "
+        "stopped there scores the mutants it did not reach as not killed)",
+    )
     args = parser.parse_args(argv)
+    if not args.limit > 0:
+        parser.error(f"--limit must be > 0 s, got {args.limit}")
     chosen = {m: t for m, t in MODULES.items() if not args.module or Path(m).stem in args.module}
     if not chosen:
         parser.error(f"no module {args.module}: one of {[Path(m).stem for m in MODULES]}")
@@ -688,7 +703,7 @@ def main(argv=None) -> int:
     if importlib.util.find_spec("mutmut") is None:
         parser.error('mutmut is not installed: pip install -e ".[test,mutation]"')
     work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
-    results = [run_module(m, t, work) for m, t in chosen.items()]
+    results = [run_module(m, t, work, args.limit) for m, t in chosen.items()]
     summary, survivors = report(results, accounts, before)
     args.out.write_text(summary)
     args.survivors.write_text(survivors)
