@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from harmonic_motion import Harmonics, rpy_matrix
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.base.lag import coarse_shift, refine_shift, shift_score, shift_scores
 from stewart_drake.calibration.tracker import emulated_setup
 from stewart_drake.organ_motion import alignment
@@ -271,3 +272,31 @@ def test_the_refined_shift_evaluates_the_reference_at_20000_samples_at_most_even
         assert times[-1] - times[0] == pytest.approx(t[-1] - t[0], abs=1e-9)
         steps = np.diff(times)
         assert np.all((steps > 0.015) & (steps < 0.035))
+
+
+def test_the_overlap_with_the_reference():
+    """The samples a measured motion is compared on: inside the reference's span (an end, or
+    from 0 s on), a margin in, ten at the least, else refused naming the two spans."""
+    ended = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=10.0)
+    t = np.arange(-2.0, 13.0, 0.5)
+    on = alignment.overlap(ended, t, 0.0)
+    np.testing.assert_array_equal(t[on], np.arange(0.0, 10.5, 0.5))
+    on = alignment.overlap(ended, t, 1.0)
+    np.testing.assert_array_equal(t[on], np.arange(1.0, 9.5, 0.5))
+    np.testing.assert_array_equal(t[alignment.overlap(MOTION, t, 0.0)], np.arange(0.0, 13.0, 0.5))
+    with pytest.raises(InvalidConfigError) as err:
+        alignment.overlap(ended, t, 3.6)  # 3.6 to 6.4: 6 samples
+    assert str(err.value) == (
+        "once aligned, the measured motion spans t = -2 to 12.5 s of the reference's clock, which "
+        "runs over 0-10 s: no overlap; check --clock-offset and that the file recorded this motion"
+    )
+    short = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=9.5)
+    assert np.count_nonzero(alignment.overlap(short, t, 2.5)) == 10  # 2.5 to 7: ten samples do
+    with pytest.raises(InvalidConfigError) as err:
+        alignment.overlap(MOTION, t - 20.0, 0.0)
+    assert "of the reference's clock, which runs from 0 s on: no overlap" in str(err.value)
+    # A reference that says nothing of its end: from 0 on.
+    bare = type("Bare", (), {"name": "bare", "evaluate": staticmethod(MOTION.evaluate)})()
+    np.testing.assert_array_equal(
+        alignment.overlap(bare, np.arange(-2.0, 13.0), 0.0)[:3], [0, 0, 1]
+    )

@@ -451,6 +451,23 @@ def test_the_settings_of_the_predictors_are_checked():
     assert PredictorSettings(bound_s=None).bound_s is None
 
 
+def test_the_settings_at_their_edges():
+    """Each count at its least taken (1; MULIN's order 0), a bool or an infinity refused as a
+    number, and a setting after one left None still checked."""
+    least = {"wlms_scales": 1, "wlms_depth": 1, "mulin_order": 0, "kalman_harmonics": 1}
+    s = PredictorSettings(**least, rnn_units=1, wlms_mu=1.0, record_margin=0.0, ridge=0.0)
+    assert (s.wlms_depth, s.kalman_harmonics, s.rnn_units, s.mulin_order) == (1, 1, 1, 0)
+    for change, words in [
+        ({"history_s": True}, "history_s must be a finite number > 0, got True"),
+        ({"history_s": math.inf}, "history_s must be a finite number > 0, got inf"),
+        ({"bound_s": None, "envelope_s": 0.0}, "envelope_s must be a finite number > 0"),
+        ({"record_margin": 1.0}, r"record_margin must be a finite number in \[0, 1\)"),
+        ({"ridge": -1e-12}, "ridge must be a finite number >= 0"),
+    ]:
+        with pytest.raises(InvalidConfigError, match=words):
+            PredictorSettings(**change)
+
+
 # --- the recurrent network ---------------------------------------------------------------
 
 

@@ -424,27 +424,6 @@ def test_a_trace_with_an_end_is_cut_into_its_own_cycles():
         vn._check_length(Lengthening(), np.array([0.0, 3.45]))
 
 
-def test_the_overlap_with_the_reference():
-    ended = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=10.0)
-    t = np.arange(-2.0, 13.0, 0.5)
-    on = vn._overlap(ended, t, 0.0)
-    np.testing.assert_array_equal(t[on], np.arange(0.0, 10.5, 0.5))
-    on = vn._overlap(ended, t, 1.0)
-    np.testing.assert_array_equal(t[on], np.arange(1.0, 9.5, 0.5))
-    np.testing.assert_array_equal(t[vn._overlap(MOTION, t, 0.0)], np.arange(0.0, 13.0, 0.5))
-    with pytest.raises(InvalidConfigError) as err:
-        vn._overlap(ended, t, 3.6)  # 3.6 to 6.4: 6 samples
-    assert str(err.value) == (
-        "once aligned, the measured motion spans t = -2 to 12.5 s of the reference's clock, which "
-        "runs over 0-10 s: no overlap; check --clock-offset and that the file recorded this motion"
-    )
-    short = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=9.5)
-    assert np.count_nonzero(vn._overlap(short, t, 2.5)) == 10  # 2.5 to 7: ten samples do
-    with pytest.raises(InvalidConfigError) as err:
-        vn._overlap(MOTION, t - 20.0, 0.0)
-    assert "of the reference's clock, which runs from 0 s on: no overlap" in str(err.value)
-
-
 def test_a_reference_that_says_nothing_of_itself():
     # Only what the Reference protocol requires: a name and evaluate.
     bare = type("Bare", (), {"name": "bare", "evaluate": staticmethod(MOTION.evaluate)})()
@@ -452,7 +431,6 @@ def test_a_reference_that_says_nothing_of_itself():
     t = np.linspace(100.0, 120.0, 11)
     assert vn._search(bare, t, None, 0.5) == pytest.approx((-110.0, -100.0 + 3600.0))
     assert vn._search(bare, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
-    np.testing.assert_array_equal(vn._overlap(bare, np.arange(-2.0, 13.0), 0.0)[:3], [0, 0, 1])
 
 
 def test_the_fundamentals_of_a_motion_that_repeats_only():

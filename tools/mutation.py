@@ -100,9 +100,12 @@ MODULES = {
     "stewart_drake/organ_motion/verification.py": ("tests/test_verification.py",),
     "stewart_drake/organ_motion/registration_motion.py": ("tests/test_registration_motion.py",),
     "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),
+    # test_predictors.py too: the settings' refusals, the bound, the envelope and the shrinkage's
+    # gain, held to values it computes apart (4 s with the JIT off).
     "stewart_drake/references/prediction.py": (
         "tests/test_stream_prediction.py",
         "tests/test_stream_guards.py",
+        "tests/test_predictors.py",
     ),
     # The selection's choice and verdicts from rows written in the test, the forms' draws.
     "stewart_drake/organ_motion/stream_selection.py": ("tests/test_stream_selection.py",),

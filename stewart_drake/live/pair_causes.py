@@ -90,9 +90,11 @@ def why_not_following(reference, t, x, x_d, measured) -> str | None:
 # -- swapped files ---------------------------------------------------------------------------------
 
 
-def _principal_axis(measured, reference, t_ref) -> int | None:
-    """The measured axis along which the reference moves most (by its RMS, a rotation
-    weighted as verify's clock weighs it), or None."""
+def _axis_moving_most(measured, reference, t_ref) -> int | None:
+    """The measured axis (a column: a camera may see one) along which the reference moves most
+    (by its RMS, a rotation weighted as verify's clock weighs it), or None; not the principal
+    direction, which is a direction in space (:func:`~stewart_drake.base.signals.
+    principal_direction`)."""
     from ..organ_motion.alignment import axis_weights, reference_poses
 
     x_d = reference_poses(reference, t_ref)
@@ -140,7 +142,7 @@ def swapped_words(
 
     axes = []
     for ref, m in zip(pair_refs, pair_measured):
-        k = _principal_axis(m.measured, ref, m.t + around_s)
+        k = _axis_moving_most(m.measured, ref, m.t + around_s)
         if k is None:
             return None
         axes.append(k)

@@ -210,10 +210,10 @@ MIN_INSIDE = 10
 def span_mask(reference, t_ref) -> np.ndarray:
     """(n,) bool: which of the times ``t_ref`` (s, on the reference's clock) fall inside the
     reference's span, [0, its ``end_time``] (no end: from 0 on;
-    :func:`~stewart_drake.organ_motion.verification.in_span`, as ``verify`` reads it); all of
+    :func:`~stewart_drake.organ_motion.alignment.in_span`, as ``verify`` reads it); all of
     them when fewer than :data:`MIN_INSIDE` do (a measurement mostly outside is compared whole
     rather than on a handful of samples)."""
-    from ..organ_motion.verification import in_span
+    from ..organ_motion.alignment import in_span
 
     t_ref = np.asarray(t_ref, dtype=float)
     use = in_span(reference, t_ref)

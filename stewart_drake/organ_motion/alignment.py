@@ -26,6 +26,10 @@ lag search, :mod:`stewart_drake.base.lag`. The distance is measured between what
 and what the reference makes it see: with a registered marker of positions only, the reference's
 marker point p + R p_EM, not the platform's origin (:func:`reference_seen`), so that a marker far
 from the origin does not pull the clock.
+**The span.** A sample is compared where its time on the reference's clock lies inside the
+reference's span, from 0 to its end if it has one (:func:`in_span`; :func:`overlap` refuses
+fewer than ten such samples): the clock search's refinement, ``verify``'s figures, a
+registration motion's fit and ``verify --surrogate``'s pair all read it.
 :func:`~.verification.verify` runs these steps and judges the aligned motion.
 """
 
@@ -38,9 +42,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..base.columns import uniform_columns
+from ..base.errors import InvalidConfigError
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
-from .fidelity import AXES
+from .fidelity import AXES, format_window
 
 #: A rotation's weight against a translation in the clock's score, m per rad (a point 0.15 m
 #: from the axis).
@@ -208,7 +213,36 @@ def rigid_shift(
     return float(shifts[0] + k * step_s), np.array(R[k])
 
 
+def in_span(reference: Reference, t_ref: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """(n,) bool: the times ``t_ref`` (s, the reference's clock) inside its span, ``margin`` s
+    in: [margin, ``end_time`` - margin] (no ``end_time``: from ``margin`` on)."""
+    end = getattr(reference, "end_time", None)
+    top = math.inf if end is None else float(end) - margin
+    return (t_ref >= margin) & (t_ref <= top)
+
+
+def overlap(reference: Reference, t_ref: np.ndarray, margin: float) -> np.ndarray:
+    """(n,) bool: the times t_ref (s, the reference's) inside its span, ``margin`` s in
+    (:func:`in_span`), where a measured motion is compared with it.
+
+    Raises:
+        InvalidConfigError: fewer than 10 such times (no overlap).
+    """
+    on = in_span(reference, t_ref, margin)
+    if np.count_nonzero(on) < 10:
+        end = getattr(reference, "end_time", None)
+        runs = "from 0 s on" if end is None else f"over 0-{end:.4g} s"
+        raise InvalidConfigError(
+            f"once aligned, the measured motion spans t = {format_window(t_ref[0], t_ref[-1])} "
+            f"s of the reference's clock, which runs {runs}: no overlap; check --clock-offset "
+            "and that the file recorded this motion"
+        )
+    return on
+
+
 __all__ = [
+    "in_span",
+    "overlap",
     "ROTATION_WEIGHT_M",
     "FRAME_KINDS",
     "reference_poses",

@@ -248,11 +248,11 @@ def _fit(reference: Reference, t, y, rot: bool, search: tuple) -> _Fit:
     """The frames fitted to the measured marker y (n, 6) at the times t (module docstring):
     the shift coarsely with the best rotation at each (:func:`rigid_shift`, within
     ``search``), then every parameter by least squares."""
-    from .verification import _overlap
+    from .alignment import overlap
 
     step = max(0.02, float(np.median(np.diff(t))))
     d0, R0 = rigid_shift(t, y[:, 3:], reference, search, step)
-    use = _overlap(reference, t + d0, step)
+    use = overlap(reference, t + d0, step)
     t, y = t[use], y[use]
     # As many as allowed, spread evenly from the first sample to the last.
     pick = np.round(np.linspace(0, len(t) - 1, min(len(t), FIT_SAMPLES))).astype(int)

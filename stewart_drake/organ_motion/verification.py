@@ -58,6 +58,7 @@ from ..references.motion import Reference
 from .alignment import (
     Frames,
     axis_weights,
+    overlap,
     platform_poses,
     reference_poses,
     reference_seen,
@@ -381,11 +382,11 @@ def verify(
     # offset (a phantom set down off its place) would otherwise pull the shift towards where
     # the reference's mean over the window comes nearest it. The offset is judged on its own.
     D0 = coarse_shift(t_rel, y, weights, shown, (lo + t_first, hi + t_first), step, True)
-    use = _overlap(reference, t_rel + D0, step)
+    use = overlap(reference, t_rel + D0, step)
     D = refine_shift(t_rel[use], y[use], weights, shown, D0, step, True)
     offsets = frames.removes_offsets
     d = D - t_first
-    keep = _overlap(reference, t_rel + D, 0.0)
+    keep = overlap(reference, t_rel + D, 0.0)
     t_ref = t_rel[keep] + D
     _check_reference_time(float(t_ref[0]), float(t_ref[-1]))
     x_d = reference_poses(reference, t_ref)
@@ -507,33 +508,6 @@ def _check_length(reference: Reference, t: np.ndarray) -> None:
         )
 
 
-def in_span(reference: Reference, t_ref: np.ndarray, margin: float = 0.0) -> np.ndarray:
-    """(n,) bool: the times ``t_ref`` (s, the reference's clock) inside its span, ``margin`` s
-    in: [margin, ``end_time`` - margin] (no ``end_time``: from ``margin`` on)."""
-    end = getattr(reference, "end_time", None)
-    top = math.inf if end is None else float(end) - margin
-    return (t_ref >= margin) & (t_ref <= top)
-
-
-def _overlap(reference: Reference, t_ref: np.ndarray, margin: float) -> np.ndarray:
-    """(n,) bool: the times t_ref (s, the reference's) inside its span, ``margin`` s in
-    (:func:`in_span`).
-
-    Raises:
-        InvalidConfigError: fewer than 10 such times (no overlap).
-    """
-    on = in_span(reference, t_ref, margin)
-    if np.count_nonzero(on) < 10:
-        end = getattr(reference, "end_time", None)
-        runs = "from 0 s on" if end is None else f"over 0-{end:.4g} s"
-        raise InvalidConfigError(
-            f"once aligned, the measured motion spans t = {format_window(t_ref[0], t_ref[-1])} "
-            f"s of the reference's clock, which runs {runs}: no overlap; check --clock-offset "
-            "and that the file recorded this motion"
-        )
-    return on
-
-
 def _frequencies(reference: Reference) -> dict:
     """The fundamentals of a reference that repeats ({} for one that does not)."""
     repeats = getattr(reference, "repeat_period_s", None) is not None
@@ -544,21 +518,21 @@ def _frequencies(reference: Reference) -> dict:
 def _removed_words(d, offset, latency, clock, frames: Frames, removed, seen, resampled) -> list:
     """The report's lines on what the alignment removed: the clock, the frames (and the
     offsets ``removed`` (6,) of the ``seen`` (6,) axes), any resampling."""
+    clock_line = (
+        f"the clock: the measured motion shifted by {d:+.6g} s onto the reference's clock (the "
+        f"shift of least distance, by FFT, then to a fraction of a sample)"
+    )
     if clock == "not known":
-        clock_line = (
-            f"the clock: the measured motion shifted by {d:+.6g} s onto the reference's clock "
-            f"(the shift of least distance, by FFT, then to a fraction of a sample). The clocks' "
-            f"relation was not given, so the whole shift is reported as the latency "
-            f"({seconds(latency)}) with clock offset 0 and is not judged: it holds any offset "
-            f"of the tracker's clock; give --clock-offset S (the measured time + S = the "
+        clock_line += (
+            f". The clocks' relation was not given, so the whole shift is reported as the "
+            f"latency ({seconds(latency)}) with clock offset 0 and is not judged: it holds any "
+            f"offset of the tracker's clock; give --clock-offset S (the measured time + S = the "
             f"reference's) to separate the phantom's own lag and judge it"
         )
     else:
-        clock_line = (
-            f"the clock: the measured motion shifted by {d:+.6g} s onto the reference's clock "
-            f"(the shift of least distance, by FFT, then to a fraction of a sample): the clock "
-            f"offset {offset:+.6g} s ({clock}) less the latency, {seconds(latency)} (> 0: the "
-            f"phantom late)"
+        clock_line += (
+            f": the clock offset {offset:+.6g} s ({clock}) less the latency, {seconds(latency)} "
+            f"(> 0: the phantom late)"
         )
     lines = [clock_line, f"the frames: {frames.words(removed, seen)}"]
     if resampled:
@@ -588,7 +562,6 @@ def _outside_words(t_all, t_ref, window, holds_start: bool) -> list:
 
 
 __all__ = [
-    "in_span",
     "MAX_LATENCY_S",
     "SEARCH_FACTOR",
     "DEFAULT_TOLERANCE",
