@@ -300,3 +300,8 @@ def test_the_overlap_with_the_reference():
     np.testing.assert_array_equal(
         alignment.overlap(bare, np.arange(-2.0, 13.0), 0.0)[:3], [0, 0, 1]
     )
+    with pytest.raises(InvalidConfigError, match="which runs from 0 s on: no overlap"):
+        alignment.overlap(bare, t - 20.0, 0.0)
+    # in_span alone: no margin unless given, and no refusal.
+    np.testing.assert_array_equal(alignment.in_span(ended, t), alignment.in_span(ended, t, 0.0))
+    assert np.count_nonzero(alignment.in_span(ended, t)) == 21

@@ -83,7 +83,11 @@ MODULES = {
     "stewart_drake/control/lqi/step.py": ("tests/test_lqi_stages.py",),
     # verify's modules against their unit tests, not tests/test_verify*.py, which run the
     # command and write its reports in process: 35 s with the JIT off, for every mutant of verify.
-    "stewart_drake/organ_motion/alignment.py": ("tests/test_alignment.py",),
+    # test_registration_motion.py too: the Kabsch search over shifts (rigid_shift) it fits with.
+    "stewart_drake/organ_motion/alignment.py": (
+        "tests/test_alignment.py",
+        "tests/test_registration_motion.py",
+    ),
     # The one lag search: its own tests and verify's clock's, which drive its score and search.
     "stewart_drake/base/lag.py": ("tests/test_lag.py", "tests/test_alignment.py"),
     # The signal toolkit: its own tests, the verdict's periods and the Kalman model's.
