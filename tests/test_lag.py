@@ -11,7 +11,7 @@ import pytest
 from interact_method import optimal_shift
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.base.lag import best_shift, signal_lag
+from stewart_drake.base.lag import best_shift, inner_mask, signal_lag
 
 #: A robot's control period and a 30 s window, as the encoders' relative latency judges.
 H = 0.01
@@ -221,8 +221,29 @@ def test_the_search_stays_within_its_shifts_and_refuses_a_wrong_range():
         ((-0.5, math.inf), H, "finite"),
         ((-0.5, 0.5), 0.0, "step must be > 0"),
         ((-0.5, 0.5), math.nan, "step must be > 0"),
+        ((-0.5, 0.5), math.inf, "step must be > 0"),
     ]:
         with pytest.raises(InvalidConfigError, match=words):
             best_shift(t, y, np.ones(1), _seen, shifts, step, True)
     with pytest.raises(InvalidConfigError, match="2 samples"):
         best_shift(t[:1], y[:1], np.ones(1), _seen, (-0.5, 0.5), H, True)
+    assert -0.5 <= best_shift(t[:2], y[:2], np.ones(1), _seen, (-0.5, 0.5), H, True) <= 0.5
+
+
+def test_the_samples_compared_are_those_a_margin_from_either_end():
+    """Times 0..10 s and a search of 2 s: 2 to 8 s, both ends included; none of no samples."""
+    t = np.arange(11.0)
+    np.testing.assert_array_equal(t[inner_mask(t, 2.0)], np.arange(2.0, 9.0))
+    assert inner_mask(np.array([]), 1.0).size == 0
+
+
+def test_the_fewest_samples_a_lag_is_measured_on():
+    """Two samples inside the margins are enough where min_samples is 2 (or less); one is
+    refused naming the two; columns each still, at different levels, have no lag."""
+    t = np.arange(6.0)
+    c = np.sin(t)
+    assert math.isfinite(signal_lag(t, np.sin(t - 0.1), c, 1.5, min_samples=2)[0])  # 2 and 3 s
+    with pytest.raises(InvalidConfigError, match=r"1 samples .* \(at least 2\)"):
+        signal_lag(t[:5], np.sin(t[:5] - 0.1), c[:5], 2.0, min_samples=1)  # 0-4 s: 2 s alone
+    still = np.column_stack([np.ones(6), 2.0 * np.ones(6)])
+    assert all(map(math.isnan, signal_lag(t, still, still, 1.5, min_samples=2)))

@@ -170,6 +170,16 @@ def best_shift(
     return refine_shift(t[use], y[use], weights, seen, 0.5 * (a + b), 0.5 * (b - a), offsets)
 
 
+def inner_mask(t, max_lag_s: float) -> np.ndarray:
+    """(n,) bool: the samples at the increasing times ``t`` (s) more than ``max_lag_s`` from
+    either end (at exactly ``max_lag_s`` included), the ones :func:`signal_lag` compares: every
+    shift within +-``max_lag_s`` compares the same samples and never reads the command past its
+    span."""
+    t = np.asarray(t, dtype=float)
+    first, last = (t[0], t[-1]) if t.size else (0.0, 0.0)
+    return (t >= first + max_lag_s) & (t <= last - max_lag_s)
+
+
 def _checked_samples(t, measured, commanded, max_lag_s: float):
     """(t (n,), y (n, k), c (n, k)) as floats, or the error of :func:`signal_lag`."""
     t = np.asarray(t, dtype=float)
@@ -226,8 +236,7 @@ def signal_lag(
         continuous shifts.
     """
     t, y, c = _checked_samples(t, measured, commanded, max_lag_s)
-    first, last = (t[0], t[-1]) if t.size else (0.0, 0.0)
-    inner = (t >= first + max_lag_s) & (t <= last - max_lag_s)
+    inner = inner_mask(t, max_lag_s)
     n_in = int(np.count_nonzero(inner))
     if n_in < max(min_samples, 2):
         raise InvalidConfigError(
@@ -256,4 +265,5 @@ __all__ = [
     "refine_shift",
     "best_shift",
     "signal_lag",
+    "inner_mask",
 ]

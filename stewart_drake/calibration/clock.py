@@ -138,14 +138,17 @@ def estimate_clock_offset(robot_t, planned, tracker_t, tracked) -> ClockOffset:
     def planned_at(times):
         return poses_at(times, robot_t, planned)
 
+    def on_path(d: float) -> np.ndarray:  # the tracked samples on the path at offset d
+        return (tracker_t + d >= robot_t[0]) & (tracker_t + d <= robot_t[-1])
+
     def mean_square(d: float) -> tuple[float, int]:
-        on = (tracker_t + d >= robot_t[0]) & (tracker_t + d <= robot_t[-1])
+        on = on_path(d)
         gap = tracked[on] - planned_at(tracker_t[on] + d)
         count = int(on.sum())
         return (float(np.mean(np.sum((gap * _WEIGHT) ** 2, axis=1))) if count else np.inf), count
 
     # The fine step compares the tracked samples on the path at the coarse offset.
-    on = (tracker_t + coarse >= robot_t[0]) & (tracker_t + coarse <= robot_t[-1])
+    on = on_path(coarse)
     d = coarse
     if np.count_nonzero(on) >= 2:
         d = refine_shift(tracker_t[on], tracked[on], _WEIGHT, planned_at, d, 2 * COARSE_DT_S, False)

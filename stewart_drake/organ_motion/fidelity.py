@@ -110,7 +110,7 @@ def time_lag(
     Raises:
         InvalidConfigError: signals of another length than ``t`` or of different shapes.
     """
-    from ..base.lag import signal_lag
+    from ..base.lag import inner_mask, signal_lag
 
     a, r = np.asarray(achieved, dtype=float), np.asarray(reference, dtype=float)
     if a.shape != r.shape or len(a) != len(t):
@@ -122,8 +122,7 @@ def time_lag(
     if len(t) < 3:  # no sample inside the margins of any search
         return math.nan
     steps = max(1, round(max_lag_s / float(np.median(np.diff(t)))))
-    inner = (t >= t[0] + max_lag_s) & (t <= t[-1] - max_lag_s)
-    if len(t) < 3 * steps or np.count_nonzero(inner) < 2:
+    if len(t) < 3 * steps or np.count_nonzero(inner_mask(t, max_lag_s)) < 2:
         return math.nan
     w = np.ones(a.reshape(len(t), -1).shape[1]) if weights is None else np.asarray(weights, float)
     a, r = a.reshape(len(t), -1) * w, r.reshape(len(t), -1) * w

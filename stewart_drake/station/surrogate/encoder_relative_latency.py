@@ -41,7 +41,7 @@ from typing import cast
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from ...base.lag import signal_lag
+from ...base.lag import inner_mask, signal_lag
 from ...base.signals import direction_words
 from .sync_figures import pair_lags
 
@@ -221,7 +221,7 @@ def relative_latency(
         min_samples=MIN_SAMPLES,
     )
     u = cast(np.ndarray, u)  # poses given: a direction found, never None
-    inner = (t_w >= t_w[0] + max_lag_s) & (t_w <= t_w[-1] - max_lag_s)
+    inner = inner_mask(t_w, max_lag_s)  # the samples the lags compared
     delay = math.nan
     if delays_s is not None:
         d = np.asarray(delays_s, dtype=float)

@@ -38,7 +38,7 @@ def _uniform(t: np.ndarray) -> float:
     return h
 
 
-def _inner_of(t: np.ndarray, max_s: float) -> None:
+def _check_record(t: np.ndarray, max_s: float) -> None:
     """Refuse samples not uniform, or fewer than 8 more than ``max_s`` from either end."""
     h = _uniform(t)
     k = max(int(np.ceil(max_s / h)), 1)
@@ -60,7 +60,7 @@ def lag_s(t, commanded, measured, max_s: float = 0.5) -> float:
         InvalidConfigError: too few samples, or not uniform.
     """
     t = np.asarray(t, float)
-    _inner_of(t, max_s)
+    _check_record(t, max_s)
     c = np.asarray(commanded, float).reshape(len(t), -1)
     m = np.asarray(measured, float).reshape(len(t), -1)
     return signal_lag(t, m, c, max_s, offsets=True, min_samples=8)[0]
@@ -144,7 +144,7 @@ def relative_latency(
             search's margins; a principal direction of non-finite samples.
     """
     t = np.asarray(t, float)
-    _inner_of(t, max_s)
+    _check_record(t, max_s)
     u, (d_i, _), (d_e, _) = pair_lags(
         t, internal, internal_measured, external, external_measured, max_s
     )
