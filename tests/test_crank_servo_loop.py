@@ -65,16 +65,21 @@ def breathing_runs():
 
 
 def test_breathing_on_the_bus_robot_is_within_the_encoders_bounds(breathing_runs):
-    """The true pose's RMS error per axis at most 1.2 times the encoders' floor in translation
-    and 1 in rotation (the robot's own encoder pose adds the floor again: within 1.5x, the
-    acceptance), and at least a fifth of it: a controller that reads one count in 4096 cannot
-    hold the cranks much closer than that, and a figure far below it would be measuring
-    something else."""
+    """The true pose's RMS error per axis within 1.35 times the encoders' floor, and at least a
+    fifth of it: a controller that reads one count in 4096 cannot hold the cranks much closer
+    than that, and a figure far below it would be measuring something else.
+
+    Why 1.35: the loop is quantised to counts, so a rounding difference (another CPU's BLAS,
+    another numpy) moves which count a crank reads at a reversal, and the figure with it. Eight
+    runs of this breathing with its amplitude moved by 0 to 1e-9 of itself gave, as a multiple of
+    the floor, phi 0.61-0.74, theta 0.90-1.02, psi 0.58-0.67, X 0.78-0.90, Y 0.51-0.67, Z
+    1.05-1.17 (max / min of an axis up to 1.31); another machine's theta 1.06. The bound holds the
+    largest of them with that spread's margin again; the wrong loops this test is for (friction
+    not fed forward, no integral action) miss the floor by 3 to 50 times (docs/robot.md)."""
     servo, _ = breathing_runs
     rms = dict(zip(AXES, servo.fidelity["rms"]))
     for axis in AXES:
-        bound = FLOOR[axis] * (1.2 if axis in "XYZ" else 1.0)
-        assert 0.2 * FLOOR[axis] < rms[axis] < bound, (axis, rms[axis], bound)
+        assert 0.2 * FLOOR[axis] < rms[axis] < 1.35 * FLOOR[axis], (axis, rms[axis], FLOOR[axis])
 
 
 def test_the_lqi_on_the_same_robot_is_several_times_further(breathing_runs):

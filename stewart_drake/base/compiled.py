@@ -472,3 +472,30 @@ def interpreted(namespace: dict) -> types.SimpleNamespace:
             else f
         )
     return types.SimpleNamespace(**{name: plain[name] for name in compiled})
+
+
+def kernel_versions(package: str = _PACKAGE) -> dict[str, int]:
+    """{``module.function``: how many versions numba holds} of every compiled function of the
+    loaded modules of ``package``. numba keeps one machine-code version a function per
+    argument type (a read-only array is another type), compiled or loaded from the cache the
+    first time it meets that type: what a warm-up did not meet, a control period pays for.
+    Read before a loop starts and after it (:func:`versions_added`)."""
+    counts: dict[str, int] = {}
+    for name, module in list(sys.modules.items()):
+        if module is None or not (name == package or name.startswith(package + ".")):
+            continue
+        for attribute, value in list(vars(module).items()):
+            py_func = getattr(value, "py_func", None)
+            signatures = getattr(value, "signatures", None)
+            if py_func is None or signatures is None or py_func.__module__ != name:
+                continue
+            counts[f"{name}.{attribute}"] = len(signatures)
+    return counts
+
+
+def versions_added(before: dict[str, int], after: dict[str, int] | None = None) -> list[str]:
+    """The compiled functions of ``after`` (default :func:`kernel_versions` now) that hold more
+    versions than in ``before`` (or are new), sorted by name: what was compiled or loaded
+    between the two readings."""
+    after = kernel_versions() if after is None else after
+    return sorted(name for name, n in after.items() if n > before.get(name, 0))

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..base.compiled import kernel_versions, versions_added
 from ..base.errors import InvalidConfigError, StartPoseError, StewartError
 from ..references.homing import HOME_S, HomingReference
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
@@ -75,6 +76,8 @@ class RobotRun:
             (None: no surrogate, or no logs); its ``line()`` is the verdict.
         relative_latency_line: the verdict's line, or why it was not measured (None: no
             surrogate's trace).
+        late_kernels: what numba compiled or loaded with the torque on (a warm-up that missed
+            its argument types: :func:`~stewart_drake.base.compiled.versions_added`); empty.
     """
 
     reason: str
@@ -90,6 +93,7 @@ class RobotRun:
     exit_code: int = 0
     relative_latency: RelativeLatency | None = None
     relative_latency_line: str | None = None
+    late_kernels: list[str] = dataclasses.field(default_factory=list)
 
 
 def run_on_robot(
@@ -308,6 +312,9 @@ def _stop(bus, driver, ended: RobotRun) -> None:
             ended.timing = driver.timing_summary()
             given = [] if ended.realtime is None else [f"realtime: {ended.realtime}"]
             ended.timing_lines = given + driver.timing_lines()
+        if ended.late_kernels:
+            late = ", ".join(ended.late_kernels)
+            ended.timing_lines.append(f"compiled or loaded with the torque on (a stall): {late}")
     finally:
         bus.close()
 
@@ -471,6 +478,7 @@ def _drive_held(bus, simulator, loop_timeout_s, say, announce, body, ended, sign
     simulator.set_target_realtime_rate(1.0)
     signals.arm()
     wall0 = time.perf_counter()
+    kernels = kernel_versions()
     try:
         try:
             # In the try: a signal the moment the torque is on ends the run as any other.
@@ -482,6 +490,7 @@ def _drive_held(bus, simulator, loop_timeout_s, say, announce, body, ended, sign
                 body()
         finally:
             signals.hold()
+            ended.late_kernels = versions_added(kernels)
         ended.reason, ended.ok = "the reference ran to its end", True
     except KeyboardInterrupt as err:
         name, ended.exit_code = signal_name(err)

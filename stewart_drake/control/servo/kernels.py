@@ -257,10 +257,21 @@ def warm_up() -> None:
     c[FRICTION_RATE], c[DELAY], c[LIMIT] = 1e-3, 1.0, math.inf
     for a in (c,):
         a.setflags(write=False)
+    # The gains read-only, as design.design_loop makes them: numba compiles (or loads) one
+    # version per argument type, read-only included, and a version first met in a control
+    # period stalls it.
     K, L, Gam = np.zeros(4), np.zeros(3), np.zeros(3)
     Phi, M, J = np.eye(3), np.eye(6), np.eye(6)
+    for a in (K, L, Phi, Gam):
+        a.setflags(write=False)
     state = np.zeros(layout(1)["size"].stop)
     step(c, K, L, Phi, Gam, legs, M, J, np.zeros(18), np.zeros(6), np.zeros(6), state)
+    # The inertia's re-schedule, which the controller calls every few periods with the robot's
+    # read-only constants (statics.kernel_constants); zero legs close no leg: it returns False.
+    body = np.zeros(len(path_kernels.BODY))
+    body.setflags(write=False)
+    x = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3])
+    path_kernels.joint_inertia(legs, body, x, np.empty((6, 6)), np.empty((6, 6)))
 
 
 #: Every function above as the Python numba compiles (its ``py_func``): the uncompiled form.
