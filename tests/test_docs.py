@@ -227,15 +227,24 @@ def script_options() -> set:
     return found
 
 
+def _options_of(parser) -> set:
+    """Every option of ``parser`` and of its own subcommands (``servo identify``'s are
+    ``servo``'s)."""
+    found = {o for a in parser._actions for o in a.option_strings}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for verb in action.choices.values():
+                found |= _options_of(verb)
+    return found
+
+
 def commands() -> dict[str, set]:
-    """{subcommand: its options} of the `stewart-drake` parser, with the global options."""
+    """{subcommand: its options, its own subcommands' included} of the `stewart-drake` parser,
+    with the global options."""
     parser = build_parser()
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     top = {o for a in parser._actions for o in a.option_strings}
-    return {
-        name: top | {o for a in p._actions for o in a.option_strings}
-        for name, p in sub.choices.items()
-    } | {"": top}
+    return {name: top | _options_of(p) for name, p in sub.choices.items()} | {"": top}
 
 
 # -- the checks ---------------------------------------------------------------------------------

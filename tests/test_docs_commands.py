@@ -261,9 +261,21 @@ def parse(argv) -> argparse.Namespace | str:
 
 
 def _option_takes_value(command: str, option: str) -> bool:
+    """Whether ``option`` of ``command`` (or of one of its own subcommands, ``servo
+    identify``'s) takes a value."""
     sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
-    action = sub.choices[command]._option_string_actions[option]
-    return action.nargs != 0
+    parsers = [sub.choices[command]]
+    while parsers:
+        parser = parsers.pop()
+        if option in parser._option_string_actions:
+            return parser._option_string_actions[option].nargs != 0
+        parsers += [
+            verb
+            for a in parser._actions
+            if isinstance(a, argparse._SubParsersAction)
+            for verb in a.choices.values()
+        ]
+    raise KeyError(option)
 
 
 def with_short(command: DocCommand) -> list[str]:

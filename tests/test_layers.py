@@ -33,6 +33,7 @@ LAYERS = {
     "organ_motion": 9,
     "tuner": 9,
     "calibration": 9,
+    "actuator": 9,
     "evaluation": 10,
     "design": 10,
     "live": 10,

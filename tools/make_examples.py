@@ -196,6 +196,25 @@ def write_patient(path, seconds=20.0):
     Path(path).write_text("\n".join(lines) + "\n")
 
 
+def write_servo_bench(path, seconds=6.0):
+    """A bench log (:mod:`stewart_drake.actuator.bench_log`) of the shipped XL330-M288-T model
+    swinging 0.49 kg at 0.1 m in its own position mode at kp 400, 7.4 V, a sine of growing
+    frequency (BAM's "sin_time_square" kind) sampled at 200 Hz, the encoder in whole counts."""
+    from stewart_drake.actuator.bench import replay
+    from stewart_drake.actuator.bench_log import BenchLog, write_bench_log
+    from stewart_drake.actuator.model_file import read_model
+
+    model, _ = read_model("XL330-M288-T")
+    t = np.arange(int(round(seconds * 200)) + 1) / 200.0
+    goal = np.sin(0.5 * np.pi * t * t) * np.minimum(1.0, t / 1.5)
+    on = np.ones(t.size, bool)
+    blank = BenchLog("", 0.49, 0.1, 0.0, 400.0, 7.4, "xl330", "sin_time_square", t, goal, t * 0, on)
+    count = 2 * np.pi / 4096
+    q = np.round(replay(model, blank) / count) * count
+    log = BenchLog("", 0.49, 0.1, 0.0, 400.0, 7.4, "xl330", "sin_time_square", t, goal, q, on)
+    write_bench_log(path, log)
+
+
 def write_reference(path, seconds=8.0):
     """The project's CSV (t,phi,theta,psi,X,Y,Z; s, rad, m) of the library's breathing with a
     2 deg tilt, at 50 Hz."""
@@ -256,6 +275,10 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   files PASSes the pair, their relative latency within a few ms of 0.
 - **patient.csv**: cosines of 4 s, SI 15 mm, AP 3.6 mm and rot_LR 1 deg peak to peak, 30 Hz.
 - **ref.csv**: the library's breathing with a 2 deg tilt, 8 s (two breaths) at 50 Hz.
+- **servo_bench.json**: the shipped XL330-M288-T model (identified on a real one's bench logs,
+  docs/servo_bench.md) replayed on a sine whose frequency grows (sin(pi t^2 / 2), its amplitude
+  ramped over 1.5 s), kp 400, 7.4 V, 6 s at 200 Hz, the angles in the encoder's whole counts:
+  `servo replay servo_bench.json --model XL330-M288-T` gives it back within a count (0.4 mrad).
 """
 
 
@@ -278,6 +301,7 @@ def make(folder: Path) -> None:
     write_traces(folder)
     write_patient(folder / "patient.csv")
     write_reference(folder / "ref.csv")
+    write_servo_bench(folder / "servo_bench.json")
     (folder / "README.md").write_text(readme())
     made = {p.name for p in folder.iterdir()}
     assert made == set(EXAMPLES) | {"README.md"}, made ^ (set(EXAMPLES) | {"README.md"})

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..actuator import command as actuator_command
 from ..analysis import command as analysis_command
 from ..design import command as design_command
 from ..evaluation import command as evaluation_command
@@ -36,6 +37,7 @@ COMMANDS = (
     live_command,  # teleop, robot
     pair_command,  # verify, alone or with its surrogate
     calibrate_command,  # calibrate
+    actuator_command,  # servo identify, servo replay
     viz_command,  # diagrams
     core,  # scenario, sdf, mjcf
 )

@@ -127,6 +127,7 @@ INPUT_OPTIONS = {
     "measurements": "the measurements",
     "join": "--join",
     "plan_file": "--plan-file",
+    "bench_logs": "the log",
 }
 #: The options that name a file a command writes, beside ``--out`` (each command checks them
 #: as it checks its other outputs; :func:`check_outputs` holds them apart from the inputs first).
@@ -135,6 +136,7 @@ OUTPUT_FILE_OPTIONS = {
     "save_learned": "--save-learned",
     "save_registration": "--save-registration",
     "save_measurements": "--save-measurements",
+    "plot": "--plot",
 }
 
 

@@ -53,6 +53,8 @@ EXAMPLES = {
     "(time [s],SI [mm],AP [mm],rot_LR [deg]), 20 s at 30 Hz: reproduce patient.csv",
     "ref.csv": "a reference of the project's own CSV (t,phi,theta,psi,X,Y,Z in s, rad, m), "
     "8 s at 50 Hz: run --trajectory-file ref.csv",
+    "servo_bench.json": "a servo's bench log: an emulated XL330-M288-T swinging 0.49 kg at "
+    "0.1 m in its own position mode, 6 s at 200 Hz: servo replay, servo identify",
 }
 #: What this command keeps in the folder it wrote to: the SHA-256 of each file it wrote there.
 MANIFEST = ".stewart-drake-examples.json"

@@ -255,14 +255,12 @@ def warm_up() -> None:
     legs.setflags(write=False)
     c = np.zeros(len(CONSTANTS))
     c[FRICTION_RATE], c[DELAY], c[LIMIT] = 1e-3, 1.0, math.inf
-    for a in (c,):
-        a.setflags(write=False)
     # The gains read-only, as design.design_loop makes them: numba compiles (or loads) one
     # version per argument type, read-only included, and a version first met in a control
     # period stalls it.
     K, L, Gam = np.zeros(4), np.zeros(3), np.zeros(3)
     Phi, M, J = np.eye(3), np.eye(6), np.eye(6)
-    for a in (K, L, Phi, Gam):
+    for a in (c, K, L, Phi, Gam):
         a.setflags(write=False)
     state = np.zeros(layout(1)["size"].stop)
     step(c, K, L, Phi, Gam, legs, M, J, np.zeros(18), np.zeros(6), np.zeros(6), state)

@@ -1,0 +1,171 @@
+"""``stewart-drake servo``: a servo identified from its bench logs (``servo identify``) and a model
+replayed against what a real servo did (``servo replay``), docs/servo_bench.md."""
+
+from __future__ import annotations
+
+import sys
+
+from ..execution.options import int_at_least
+
+
+def register(sub) -> None:
+    """Add the ``servo`` command, with ``identify`` and ``replay``, to ``sub``, the
+    ``stewart-drake`` subparsers."""
+    servo = sub.add_parser(
+        "servo",
+        help="identify a servo's drive and friction from its bench logs, or replay a model "
+        "against them (docs/servo_bench.md)",
+    )
+    verbs = servo.add_subparsers(dest="servo_verb", metavar="{identify,replay}", required=True)
+    ident = verbs.add_parser(
+        "identify",
+        help="fit a servo's drive and friction to bench logs and write the model",
+    )
+    ident.add_argument("bench_logs", nargs="+", metavar="LOG", help="bench logs (JSON)")
+    ident.add_argument("--servo", required=True, help="the servo (e.g. XL330-M288-T)")
+    ident.add_argument(
+        "--model-class",
+        default="m6",
+        choices=("m1", "m2", "m3", "m4", "m5", "m6"),
+        help="the friction model (Duclusaud et al., ICRA 2025): m1 Coulomb and viscous, m2 "
+        "with Stribeck, m3 load-dependent, m4 both, m5 directional, m6 quadratic",
+    )
+    ident.add_argument("--seed", type=int_at_least(0), default=0, help="the search's seed")
+    ident.add_argument(
+        "--generations",
+        type=int_at_least(1),
+        default=150,
+        help="generations of the search at most (each replays every log 15 times per term)",
+    )
+    ident.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ident.add_argument("--out", required=True, help="the model file to write (JSON)")
+    ident.set_defaults(func=_cmd_identify, out_is_file=True)
+    rep = verbs.add_parser(
+        "replay",
+        help="run a servo model on bench logs' goals and print its error against the real servo",
+    )
+    rep.add_argument("bench_logs", nargs="+", metavar="LOG", help="bench logs (JSON)")
+    rep.add_argument(
+        "--model",
+        dest="servo_model",
+        required=True,
+        help="a model file (servo identify), or a servo whose model is shipped (XL330-M288-T)",
+    )
+    rep.add_argument(
+        "--plot",
+        default=None,
+        metavar="FILE.png",
+        help="also draw each log's measured and replayed angle (default: no figure)",
+    )
+    rep.set_defaults(func=_cmd_replay, derived_inputs=_model_input)
+
+
+def _model_input(args) -> list:
+    """The model file ``--model`` reads (a shipped one where it names a servo): an input no
+    output may replace."""
+    from .model_file import model_path
+
+    return [(f"--model {args.servo_model}", model_path(args.servo_model))]
+
+
+def _read_logs(paths) -> list:
+    from .bench_log import read_bench_log
+
+    return [read_bench_log(path) for path in paths]
+
+
+def _table(model, logs, identified_on=()) -> tuple[list[str], list[dict]]:
+    """Lines of each log's error (mean absolute, RMS, peak, mrad), which logs the model was
+    identified on apart from the others, and the mean of each group; the rows."""
+    from .bench import errors, replay
+
+    rows = []
+    for log in logs:
+        row = errors(replay(model, log), log)
+        row.update(log=log.name, kp=log.kp, seen=log.name in identified_on)
+        rows.append(row)
+    width = max(len(r["log"]) for r in rows)
+    lines = [f"  {'log':<{width}}  {'kp':>5}  {'MAE':>7}  {'RMS':>7}  {'peak':>7} mrad"]
+    for r in rows:
+        lines.append(
+            f"  {r['log']:<{width}}  {r['kp']:>5g}  {1e3 * r['mae_rad']:>7.2f}  "
+            f"{1e3 * r['rms_rad']:>7.2f}  {1e3 * r['peak_rad']:>7.1f}"
+            + ("   (identified on it)" if r["seen"] else "")
+        )
+    for label, group in (
+        ("logs it was identified on", [r for r in rows if r["seen"]]),
+        ("logs held out of its identification", [r for r in rows if not r["seen"]]),
+    ):
+        if group:
+            mae = sum(r["mae_rad"] for r in group) / len(group)
+            rms = (sum(r["rms_rad"] ** 2 for r in group) / len(group)) ** 0.5
+            logs_word = f"{len(group)} {label}" if len(group) > 1 else label.replace("logs", "log")
+            lines.append(
+                f"  mean over the {logs_word}: MAE {1e3 * mae:.2f} mrad, RMS {1e3 * rms:.2f} mrad"
+            )
+    return lines, rows
+
+
+def _cmd_identify(args) -> int:
+    """``servo identify``: the logs read and checked, the search, the table, the file."""
+    from .bench import bench_servo
+    from .identify import identify
+    from .model_file import write_model
+
+    bench_servo(args.servo)  # an unknown servo refused before the logs are read
+    logs = _read_logs(args.bench_logs)
+    print(
+        f"stewart-drake servo: identifying {args.servo} ({args.model_class}) on {len(logs)} "
+        f"logs, {args.generations} generations at most (a minute or more)",
+        file=sys.stderr,
+        flush=True,
+    )
+    bar = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=args.generations, unit="gen", file=sys.stderr, leave=False)
+
+    def progress(generation: int, mae: float) -> None:
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix_str(f"MAE {1e3 * mae:.2f} mrad")
+
+    try:
+        found = identify(logs, args.servo, args.model_class, args.seed, args.generations, progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    m = found.model
+    print(
+        f"{m.servo} ({m.model_class}): k {m.k_Nm_per_A:.4g} N m/A, R {m.resistance_ohm:.4g} "
+        f"ohm, armature {m.armature_kg_m2:.4g} kg m^2, zero {1e3 * m.q_offset_rad:.3g} mrad; "
+        "friction " + ", ".join(f"{name} {value:.4g}" for name, value in m.friction.items())
+    )
+    lines, _ = _table(m, logs, found.logs)
+    print("replayed on the logs it was identified on (the servo's own loop closed on the "
+          "simulated shaft, the whole log):")  # fmt: skip
+    print("\n".join(lines))
+    path = write_model(args.out, found, args.seed)
+    print(f"wrote {path}")
+    return 0
+
+
+def _cmd_replay(args) -> int:
+    """``servo replay``: the model and logs read and checked, each log replayed, the table."""
+    from .model_file import model_path, read_model
+
+    model, identified_on = read_model(args.servo_model)
+    logs = _read_logs(args.bench_logs)
+    lines, rows = _table(model, logs, identified_on)
+    print(
+        f"{model.servo} ({model.model_class}) from {model_path(args.servo_model)}, driven by "
+        "each log's goal positions, against the angles the log's encoder recorded:"
+    )
+    print("\n".join(lines))
+    if args.plot:
+        from .figures import plot_replays
+
+        path = plot_replays(model, logs, rows, args.plot)
+        print(f"wrote {path}")
+    return 0

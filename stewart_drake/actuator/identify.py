@@ -1,0 +1,159 @@
+"""A servo's drive and friction identified from its bench logs: the :class:`~.bench.BenchModel` of
+one model class whose replay of every log (:func:`~.bench.replay`: the firmware's loop closed on
+the simulated shaft, the whole log, never reset to the measurement) departs least from what the
+real servo did, in mean absolute error over the logs (Duclusaud et al., ICRA 2025, identify their
+models this way, with CMA-ES).
+
+The search: scipy's differential evolution (a seeded, bounded global search; the error is not
+smooth where the shaft sticks and slips, which rules out a gradient), over the motor's constant,
+the resistance, the rotor's inertia at the shaft, the bench's zero error and the class's friction
+terms (:data:`~stewart_drake.station.bus.servo_physics.MODEL_CLASSES`), each within
+:func:`bounds`. What the logs cannot tell apart stays unidentified: the P divisor and the torque
+constant scale together (:data:`~.bench.BENCH_SERVOS` gives the divisor), and a log in position
+mode drives the motor by its PWM, so the current loop's lag does not show in it (the servo's
+current loop is bypassed there).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..base.checks import check_int
+from ..base.errors import InvalidConfigError
+from ..station.bus import servo_physics as physics
+from ..station.bus.servo_physics import MODEL_CLASSES, friction_vector
+from .bench import BenchModel, BenchServo, bench_servo, log_arrays
+from .bench_log import BenchLog
+
+#: The drive's terms a search moves, before the friction's.
+DRIVE_TERMS = ("k_Nm_per_A", "resistance_ohm", "armature_kg_m2", "q_offset_rad")
+
+
+def bounds(servo: BenchServo, model_class: str) -> dict[str, tuple[float, float]]:
+    """{term: (low, high)} of a search of ``model_class`` on ``servo``: the motor's constant
+    within a factor of 4 of the datasheet's stall torque over its current limit (either side),
+    the resistance 0.3 to 20 ohm, the rotor 1e-5 to 0.05 kg m^2 at the shaft, the bench's zero
+    within 0.1 rad; friction torques up to 40 % of the stall torque, the viscous term up to the
+    stall torque over the no-load speed, load shares up to 1, the Stribeck speed 0.01 to 5 rad/s
+    and its exponent 0.5 to 10 (Duclusaud et al.'s ranges), the quadratic terms up to 0.05 per
+    N m."""
+    k0 = servo.stall_torque_Nm / servo.current_limit_A
+    torque = 0.4 * servo.stall_torque_Nm
+    ranges = {
+        "k_Nm_per_A": (k0 / 4, 4 * k0),
+        "resistance_ohm": (0.3, 20.0),
+        "armature_kg_m2": (1e-5, 0.05),
+        "q_offset_rad": (-0.1, 0.1),
+        "coulomb_Nm": (0.0, torque),
+        "viscous_Nm_s_per_rad": (0.0, servo.stall_torque_Nm / servo.no_load_speed_rad_s),
+        "stribeck_Nm": (0.0, torque),
+        "stribeck_rad_s": (0.01, 5.0),
+        "stribeck_alpha": (0.5, 10.0),
+        "quad_motor_per_Nm": (0.0, 0.05),
+        "quad_external_per_Nm": (0.0, 0.05),
+    }
+    terms = DRIVE_TERMS + MODEL_CLASSES[model_class]
+    return {name: ranges.get(name, (0.0, 1.0)) for name in terms}
+
+
+def model_of(servo: str, model_class: str, x: Sequence[float]) -> BenchModel:
+    """The :class:`~.bench.BenchModel` of a search's vector ``x`` (:data:`DRIVE_TERMS`, then the
+    class's friction terms)."""
+    terms = MODEL_CLASSES[model_class]
+    k, R, armature, offset = (float(v) for v in x[:4])
+    friction = {name: float(v) for name, v in zip(terms, x[4:])}
+    return BenchModel(servo, model_class, k, R, armature, offset, friction)
+
+
+@dataclass(frozen=True)
+class Identified:
+    """An identification's result.
+
+    Attributes:
+        model: the model found.  mae_rad: its mean over the logs of each log's mean absolute
+            error, rad.  evaluations: how many replays of the logs the search ran.
+        logs: the logs' names, in order.
+    """
+
+    model: BenchModel
+    mae_rad: float
+    evaluations: int
+    logs: tuple[str, ...]
+
+
+def identify(
+    logs: Sequence[BenchLog],
+    servo: str,
+    model_class: str = "m6",
+    seed: int = 0,
+    generations: int = 150,
+    progress: Callable[[int, float], None] | None = None,
+) -> Identified:
+    """The :class:`~.bench.BenchModel` of ``model_class`` that replays ``logs`` best (module
+    docstring).
+
+    Args:
+        logs: checked bench logs (:func:`~.bench_log.read_bench_log`) of the one servo.
+        servo: a :data:`~.bench.BENCH_SERVOS` key.  model_class: "m1" .. "m6".
+        seed: the search's seed (the same logs and seed give the same model).
+        generations: the search's generations at most (each ``15 x`` the terms' count replays).
+        progress: ``f(generation, best mean absolute error rad)`` after each generation.
+    Raises:
+        InvalidConfigError: no log, an unknown servo or model class, generations < 1.
+    """
+    from scipy.optimize import differential_evolution
+
+    spec = bench_servo(servo)
+    if model_class not in MODEL_CLASSES:
+        raise InvalidConfigError(
+            f"--model-class {model_class!r}: choose one of {', '.join(MODEL_CLASSES)}"
+        )
+    if not logs:
+        raise InvalidConfigError("identify needs at least one bench log")
+    generations = check_int("generations", generations, 1)
+    arrays = [log_arrays(log, spec) for log in logs]
+    measured = [log.q for log in logs]
+    outs = [np.empty(log.t.size) for log in logs]
+    terms = MODEL_CLASSES[model_class]
+    f = friction_vector({})
+    slots = np.array([physics.FRICTION[name] for name in terms], dtype=np.int64)
+    count = [0]
+
+    def objective(x) -> float:
+        count[0] += 1
+        f[slots] = x[4:]
+        drive = np.asarray(x[:4], dtype=float)
+        total = 0.0
+        for (t, goal, enabled, bench, constants), q, out in zip(arrays, measured, outs):
+            out[0] = q[0]
+            physics.pendulum_rollout(t, goal, enabled, bench, constants, drive, f, 1e-3, out)
+            e = np.mean(np.abs(out - q))
+            total += e if math.isfinite(e) else 10.0
+        return total / len(arrays)
+
+    def callback(xk, convergence=None) -> None:
+        callback.generation += 1  # type: ignore[attr-defined]
+        if progress is not None:
+            progress(callback.generation, objective(xk))  # type: ignore[attr-defined]
+
+    callback.generation = 0  # type: ignore[attr-defined]
+    ranges = list(bounds(spec, model_class).values())
+    result = differential_evolution(
+        objective,
+        ranges,
+        seed=seed,
+        maxiter=generations,
+        popsize=15,
+        tol=1e-6,
+        mutation=(0.5, 1.0),
+        recombination=0.7,
+        polish=False,
+        init="sobol",
+        callback=callback,
+    )
+    model = model_of(servo, model_class, result.x)
+    return Identified(model, float(result.fun), count[0], tuple(log.name for log in logs))

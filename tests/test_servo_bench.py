@@ -1,0 +1,249 @@
+"""A servo on its bench (stewart_drake/actuator): its logs read and checked (a battery of wrong
+files refused, each naming what is wrong), its model's file, the identification recovering a
+servo whose parameters the test chose (within 10 %, from logs its own bench made), and the
+``servo`` command as a user runs it."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from stewart_drake.actuator.bench import BenchModel, errors, replay
+from stewart_drake.actuator.bench_log import BenchLog, read_bench_log, write_bench_log
+from stewart_drake.actuator.identify import identify
+from stewart_drake.actuator.model_file import read_model, write_model
+from stewart_drake.base.errors import CorruptFileError, InvalidConfigError
+from stewart_drake.cli import main as cli
+
+SERVO = "XL330-M288-T"
+#: The servo the test hides in its logs: the XL330's datasheet constant (0.52 N m / 1.47 A), a
+#: winding of 2.8 ohm, a rotor of 2e-3 kg m^2 at the shaft, a zero 10 mrad off, and friction.
+HIDDEN = BenchModel(
+    SERVO, "m1", 0.35, 2.8, 0.002, 0.01, {"coulomb_Nm": 0.01, "viscous_Nm_s_per_rad": 0.006}
+)
+COUNT = 2 * math.pi / 4096
+
+
+def _bench_log(kp: float, shape: str, model: BenchModel = HIDDEN, seconds: float = 4.0):
+    """What the bench records of ``model`` (0.49 kg at 0.1 m, 7.4 V) following ``shape`` at gain
+    ``kp``: the angles its encoder reads, in whole counts."""
+    t = np.arange(0.0, seconds, 0.005)
+    goal = {
+        "sin": 1.2 * np.sin(math.pi * t),
+        "chirp": 0.9 * np.sin(2 * math.pi * (0.3 + 0.3 * t) * t),
+        "step": np.where(t > 0.3, 1.0, 0.0),
+    }[shape]
+    on = np.ones(t.size, bool)
+    blank = BenchLog("", 0.49, 0.1, 0.0, kp, 7.4, "xl330", shape, t, goal, np.zeros(t.size), on)
+    q = np.round(replay(model, blank) / COUNT) * COUNT
+    return BenchLog("", 0.49, 0.1, 0.0, kp, 7.4, "xl330", f"{shape} kp {kp:g}", t, goal, q, on)
+
+
+@pytest.fixture(scope="module")
+def bench_logs():
+    return [_bench_log(kp, s) for kp in (100, 400) for s in ("sin", "chirp", "step")]
+
+
+def test_identification_recovers_the_hidden_servo_within_ten_percent(bench_logs):
+    """Six logs of the hidden servo (two gains, three motions): the search finds each of its
+    parameters within 10 % (the zero within 1 mrad), and its replay within a count of the
+    logs; a servo twice as stiff (k doubled) would be 30 times further."""
+    found = identify(bench_logs, SERVO, "m1", seed=1, generations=50)
+    m = found.model
+    for name in ("k_Nm_per_A", "resistance_ohm", "armature_kg_m2"):
+        assert getattr(m, name) == pytest.approx(getattr(HIDDEN, name), rel=0.1), name
+    assert abs(m.q_offset_rad - HIDDEN.q_offset_rad) < 1e-3
+    for name, value in HIDDEN.friction.items():
+        assert m.friction[name] == pytest.approx(value, rel=0.1), name
+    assert found.mae_rad < COUNT
+    wrong = BenchModel(SERVO, "m1", 0.7, 2.8, 0.002, 0.01, dict(HIDDEN.friction))
+    far = np.mean([errors(replay(wrong, log), log)["mae_rad"] for log in bench_logs])
+    assert far > 30 * found.mae_rad
+
+
+def test_a_replay_of_the_true_servo_is_within_a_count_and_of_another_is_not(bench_logs):
+    log = bench_logs[0]
+    e = errors(replay(HIDDEN, log), log)
+    assert e["mae_rad"] <= 0.5 * COUNT and e["peak_rad"] <= 0.5 * COUNT + 1e-12
+    heavy = BenchModel(SERVO, "m1", 0.35, 2.8, 0.02, 0.01, dict(HIDDEN.friction))
+    assert errors(replay(heavy, log), log)["mae_rad"] > 10 * COUNT
+    # the figures by hand: the mean, the root mean square and the largest of |simulated - log|
+    shifted = log.q + np.where(np.arange(log.q.size) % 2 == 0, 0.003, -0.001)
+    by_hand = errors(shifted, log)
+    assert by_hand["mae_rad"] == pytest.approx(0.002, rel=1e-3)
+    assert by_hand["rms_rad"] == pytest.approx(math.sqrt((0.003**2 + 0.001**2) / 2), rel=1e-3)
+    assert by_hand["peak_rad"] == pytest.approx(0.003)
+
+
+# -- the log's file ---------------------------------------------------------------------------
+
+
+def _raw(**changes):
+    entries = [
+        {"timestamp": 0.005 * i, "goal_position": 0.01 * i, "position": 0.0, "torque_enable": True}
+        for i in range(30)
+    ]
+    data = {"mass": 0.49, "length": 0.1, "kp": 200, "vin": 7.4, "entries": entries}
+    data.update(changes)
+    return data
+
+
+def test_a_log_reads_back_as_written(tmp_path, bench_logs):
+    path = write_bench_log(tmp_path / "log.json", bench_logs[1])
+    log = read_bench_log(path)
+    np.testing.assert_array_equal(log.q, bench_logs[1].q)
+    np.testing.assert_array_equal(log.goal, bench_logs[1].goal)
+    assert (log.kp, log.mass_kg, log.name) == (100, 0.49, "log.json")
+    assert log.supply_V == pytest.approx(7.4, rel=1e-12)
+    assert log.inertia_kg_m2 == pytest.approx(0.49 * 0.01)
+    assert log.gravity_Nm == pytest.approx(0.49 * 9.80665 * 0.1)
+
+
+def test_the_supply_is_the_measured_one_where_the_log_has_it(tmp_path):
+    data = _raw()
+    for entry in data["entries"]:
+        entry["input_volts"] = 7.2
+    (tmp_path / "v.json").write_text(json.dumps(data))
+    assert read_bench_log(tmp_path / "v.json").supply_V == pytest.approx(7.2)
+    (tmp_path / "n.json").write_text(json.dumps(_raw()))
+    assert read_bench_log(tmp_path / "n.json").supply_V == 7.4
+
+
+BAD_LOGS = {
+    "not an object": ([1, 2], "not an object"),
+    "no mass": ({k: v for k, v in _raw().items() if k != "mass"}, "it has no 'mass'"),
+    "no length": (_raw(length=0), "length is 0.0, not a finite number above 0"),
+    "a string kp": (_raw(kp="400"), "kp is '400', not a number"),
+    "a NaN supply": (_raw(vin=float("nan")), "vin is nan"),
+    "a negative arm": (_raw(arm_mass=-1), "arm_mass is -1.0"),
+    "too short": (_raw(entries=_raw()["entries"][:5]), "5 samples, fewer than the 20"),
+    "entries not a list": (_raw(entries={"a": 1}), "entries holds dict"),
+}
+
+
+@pytest.mark.parametrize("name", BAD_LOGS)
+def test_a_wrong_log_is_refused_naming_what_is_wrong(tmp_path, name):
+    data, words = BAD_LOGS[name]
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data).replace("NaN", "NaN"))
+    with pytest.raises(CorruptFileError) as err:
+        read_bench_log(path)
+    assert words in str(err.value) and str(path) in str(err.value)
+
+
+@pytest.mark.parametrize(
+    "entry, words",
+    [
+        ({"timestamp": 0.0, "position": 0.0, "torque_enable": True}, "has no 'goal_position'"),
+        ({"timestamp": 0.0, "goal_position": None, "position": 0.0}, "goal_position is None"),
+        ({"timestamp": 0.0, "goal_position": 0, "position": 0, "torque_enable": "yes"}, "yes"),
+    ],
+)
+def test_a_wrong_sample_is_named_by_its_index(tmp_path, entry, words):
+    data = _raw()
+    data["entries"][7] = entry
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(CorruptFileError, match="entry 7") as err:
+        read_bench_log(tmp_path / "bad.json")
+    assert words in str(err.value)
+
+
+def test_timestamps_that_do_not_increase_are_refused_where_they_stop(tmp_path):
+    data = _raw()
+    data["entries"][12]["timestamp"] = data["entries"][11]["timestamp"]
+    (tmp_path / "bad.json").write_text(json.dumps(data))
+    with pytest.raises(CorruptFileError, match="do not increase at entry 12"):
+        read_bench_log(tmp_path / "bad.json")
+
+
+def test_a_folder_random_bytes_and_an_empty_file_are_refused(tmp_path):
+    with pytest.raises(CorruptFileError, match="folder"):
+        read_bench_log(tmp_path)
+    (tmp_path / "r.json").write_bytes(bytes(range(256)))
+    with pytest.raises(CorruptFileError, match="not JSON|not UTF-8"):
+        read_bench_log(tmp_path / "r.json")
+    (tmp_path / "e.json").write_text("")
+    with pytest.raises(CorruptFileError, match="empty"):
+        read_bench_log(tmp_path / "e.json")
+
+
+# -- the model's file -------------------------------------------------------------------------
+
+
+def test_a_model_reads_back_as_written_with_the_logs_it_came_from(tmp_path, bench_logs):
+    from stewart_drake.actuator.identify import Identified
+
+    found = Identified(HIDDEN, 0.001, 10, ("a.json", "b.json"))
+    model, logs = read_model(write_model(tmp_path / "m.json", found, seed=3))
+    assert model == HIDDEN and logs == ("a.json", "b.json")
+    data = json.loads((tmp_path / "m.json").read_text())
+    assert data["seed"] == 3 and data["mae_rad"] == 0.001
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [
+        ({"format": "other"}, "format is not"),
+        ({"version": 2}, "version 2"),
+        ({"k_Nm_per_A": "0.3"}, "k_Nm_per_A is '0.3'"),
+        ({"resistance_ohm": -1.0}, "resistance_ohm must be > 0"),
+        ({"servo": "XM999"}, "the bench knows"),
+        ({"model_class": "m9"}, "model class 'm9'"),
+        ({"friction": {"load": 0.1}}, "m1 has no friction term load"),
+        ({"friction": {"coulomb_Nm": -0.1}}, "coulomb_Nm must be >= 0"),
+        ({"friction": [1]}, "not an object of terms"),
+        ({"identified_on": "a.json"}, "not a list of names"),
+    ],
+)
+def test_a_wrong_model_file_is_refused_naming_what_is_wrong(tmp_path, change, words):
+    from stewart_drake.actuator.identify import Identified
+
+    path = write_model(tmp_path / "m.json", Identified(HIDDEN, 0.001, 1, ("a",)), 0)
+    data = json.loads(path.read_text())
+    data.update(change)
+    path.write_text(json.dumps(data))
+    with pytest.raises(CorruptFileError) as err:
+        read_model(path)
+    assert words in str(err.value)
+
+
+def test_an_unknown_servo_or_class_is_refused_before_the_search(bench_logs):
+    with pytest.raises(InvalidConfigError, match="the bench knows XL330-M288-T"):
+        identify(bench_logs, "XM430-W350-T")
+    with pytest.raises(InvalidConfigError, match="choose one of m1"):
+        identify(bench_logs, SERVO, "m7")
+    with pytest.raises(InvalidConfigError, match="at least one bench log"):
+        identify([], SERVO)
+
+
+# -- the command ------------------------------------------------------------------------------
+
+
+def test_identify_then_replay_as_a_user_runs_them(tmp_path, capsys, bench_logs):
+    paths = [write_bench_log(tmp_path / f"{i}.json", log) for i, log in enumerate(bench_logs)]
+    out = tmp_path / "model.json"
+    argv = ["servo", "identify", *map(str, paths[:4]), "--servo", SERVO, "--model-class", "m1"]
+    assert cli.main([*argv, "--generations", "25", "--no-progress", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "(identified on it)" in said and f"wrote {out}" in said
+    model, seen = read_model(out)
+    assert seen == tuple(p.name for p in paths[:4])
+    png = tmp_path / "replay.png"
+    argv = ["servo", "replay", *map(str, paths), "--model", str(out), "--plot", str(png)]
+    assert cli.main(argv) == 0
+    said = capsys.readouterr().out
+    assert "mean over the 4 logs it was identified on" in said
+    assert "mean over the 2 logs held out of its identification" in said
+    assert png.stat().st_size > 10_000
+
+
+def test_the_command_refuses_in_one_line(tmp_path, capsys, bench_logs):
+    path = write_bench_log(tmp_path / "0.json", bench_logs[0])
+    argv = ["servo", "identify", str(path), "--servo", "XM999", "--out", str(tmp_path / "m")]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the bench knows XL330-M288-T" in err[0]
+    assert cli.main(["servo", "replay", str(path), "--model", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is not a valid servo model file" in err[0]
