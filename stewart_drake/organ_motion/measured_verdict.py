@@ -155,6 +155,29 @@ def _correlation(a, b) -> float:
     return float(np.mean(a * b)) / den if den > 0 else 0.0
 
 
+def _least_turn(q, x_d, seen) -> tuple:
+    """(the turn, the reference's centred positions r (n, 3), the RMS distance after it) of the
+    centred measured positions q (n, 3) onto x_d's (n, 6) translations: Kabsch on the measured
+    axes ``seen``."""
+    from scipy.spatial.transform import Rotation
+
+    r = np.zeros((len(q), 3))
+    r[:, seen] = x_d[:, 3:][:, seen] - np.mean(x_d[:, 3:][:, seen], axis=0)
+    # A motion along one line leaves a turn about it free: three unit pairs of a thousandth of
+    # the motion's weight take the least turn among those that fit alike.
+    eye = np.eye(3)
+    weights = np.concatenate([np.ones(len(q)), np.full(3, 1e-3 * float(np.sum(r * r)))])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        turn, _ = Rotation.align_vectors(np.vstack([r, eye]), np.vstack([q, eye]), weights)
+    after = float(np.sqrt(np.mean(np.sum((turn.apply(q) - r) ** 2, axis=1))))
+    return turn, r, after
+
+
+def _angle(fit) -> float:
+    return float(fit[0].magnitude())
+
+
 def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[str | None, float]:
     """(the cause, the turn, rad) when the measured translations (n, 6) are the reference's
     x_d (n, 6) turned (a tracker whose axes are not the base frame's, or a whole phantom set
@@ -168,15 +191,14 @@ def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[s
     :data:`TURN_SEARCH_S`) are found
     together (:func:`~.alignment.rigid_shift`: the best rotation at every shift): a
     turn that moves the motion off the axes it was asked along (a quarter turn) leaves the
-    clock's own search with nothing to match. Words only: the verdict is not changed."""
-    from scipy.spatial.transform import Rotation
-
+    clock's own search with nothing to match; of the two fits (on the verdict's clock, and
+    shifted), the least turn of those alike. Words only: the verdict is not changed."""
     seen = [k - 3 for k in (3, 4, 5) if measured[k]]
     if len(seen) < 2:
         return None, 0.0
     q = np.zeros((len(x), 3))
-    r = np.zeros((len(x), 3))
     q[:, seen] = x[:, 3:][:, seen] - np.mean(x[:, 3:][:, seen], axis=0)
+    candidates = [x_d]  # the reference on the clock the verdict found
     if t is not None and reference is not None and len(t) > 10:
         from .alignment import reference_poses, rigid_shift
 
@@ -186,19 +208,15 @@ def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[s
         y = np.zeros((len(t), 3))
         y[:, seen] = x[:, 3:][:, seen]
         d, _ = rigid_shift(np.asarray(t, dtype=float), y, reference, (-half, half), step)
-        x_d = reference_poses(reference, np.asarray(t, dtype=float) + d)
-    r[:, seen] = x_d[:, 3:][:, seen] - np.mean(x_d[:, 3:][:, seen], axis=0)
-    # A motion along one line leaves a turn about it free: three unit pairs of a thousandth of
-    # the motion's weight take the least turn among those that fit alike.
-    eye = np.eye(3)
-    weights = np.concatenate([np.ones(len(q)), np.full(3, 1e-3 * float(np.sum(r * r)))])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        turn, _ = Rotation.align_vectors(np.vstack([r, eye]), np.vstack([q, eye]), weights)
+        candidates.append(reference_poses(reference, np.asarray(t, dtype=float) + d))
+    fits = [_least_turn(q, candidate, seen) for candidate in candidates]
+    # A motion in a plane fits a half turn about its normal half a period on as well as its own
+    # turn: of the fits alike (within a tenth of the tolerance), the least turn.
+    best = min(fit[2] for fit in fits)
+    turn, r, after = min((f for f in fits if f[2] <= best + 0.1 * tolerance[0]), key=_angle)
     angle = float(turn.magnitude())
     back = turn.apply(q) - r
     before = float(np.sqrt(np.mean(np.sum((q - r) ** 2, axis=1))))
-    after = float(np.sqrt(np.mean(np.sum(back**2, axis=1))))
     within = bool(np.all(np.sqrt(np.mean(back[:, seen] ** 2, axis=0)) <= tolerance[0]))
     large = angle > MAX_TURN_RAD
     # A large turn must explain the motion to the tolerance: it competes with an axis's own
