@@ -18,12 +18,14 @@ the measured window (after the first ``--skip`` s of the motion, past the homing
 * the loop's CPU time a period (median, p99), its deadline misses, with ``--breakdown`` where it
   goes.
 
-``--plant-friction K`` gives the emulated servos K times the catalogue's friction while the
-controller believes the catalogue's; ``--set payload_scale=K`` a payload it does not know.
+The emulated servos are the scenario's ``emulator`` section's (``robot --emulate``'s: realistic,
+drawn from its seed, by default): ``--set emulator.servos=ideal`` the controller's own model,
+``--set emulator.friction_scale=K`` (or any of its departures) one of them;
+``--set payload_scale=K`` a payload the controller does not know.
 
 Usage: python benchmarks/bus_accuracy.py [--scenario paper_bus] [--motion breathing]
     [--param KEY=VALUE ...] [--duration 30] [--period 0.01 ...] [--load 0 ...] [--skip 8]
-    [--no-sim] [--breakdown] [--set KEY=VALUE ...] [--plant-friction K]
+    [--no-sim] [--breakdown] [--set KEY=VALUE ...]
 """
 
 import argparse
@@ -64,39 +66,11 @@ def figures(e: np.ndarray) -> str:
     return "  ".join(f"{a} {r:.3f}/{p:.2f}" for a, r, p in zip(AXES, rms, peak))
 
 
-def _emulator(scenario, plant_friction: float):
-    """The bus emulator behind ``scenario`` (``robot --emulate``'s), its servos' dry and viscous
-    friction ``plant_friction`` times the catalogue's (the controller still believes the
-    catalogue's)."""
-    import dataclasses
-
-    if plant_friction == 1.0:
-        return _start_emulator(scenario, REST, realtime=True)
-    from stewart_drake.live.emulator_process import EmulatorProcess
-    from stewart_drake.live.plant_backend import behind_the_bus
-
-    hw = scenario.bus.hardware(scenario.control_period_s)
-    motors = dataclasses.replace(
-        hw.motors,
-        coulomb_friction_Nm=plant_friction * hw.motors.coulomb_friction_Nm,
-        viscous_damping=plant_friction * hw.motors.viscous_damping,
-    )
-    robot = behind_the_bus(scenario, hardware=dataclasses.replace(hw, motors=motors))
-    bus = scenario.bus
-    bus.reply_timeout_s = bus.reply_timeout_s or 2.0
-    emulator = EmulatorProcess(
-        x0=REST, ids=bus.ids, model=bus.model, scenario=robot, zero_counts=bus.zero_counts,
-        start_timeout_s=300.0, realtime=True, surrogate=bus.surrogate,
-    ).start()  # fmt: skip
-    bus.port = emulator.port
-    return emulator
-
-
 def emulated(scenario, args, period: float, load: int, out: str):
     """One session on the emulator: (true errors (n, 6), encoder errors (m, 6), cpu ms (k,),
     misses, periods, breakdown lines)."""
     scenario.control_period_s = scenario.log_period_s = period
-    emulator = _emulator(scenario, args.plant_friction)
+    emulator = _start_emulator(scenario, REST, realtime=True)
     _, sd, clock, timed = session_on_emulator(
         scenario, emulator, load, args.breakdown, out, lambda line: None, realtime=True
     )
@@ -171,9 +145,6 @@ def main() -> None:
     )
     parser.add_argument("--no-sim", action="store_true", help="no simulated prediction")
     parser.add_argument("--breakdown", action="store_true", help="where the loop's CPU goes")
-    parser.add_argument(
-        "--plant-friction", type=float, default=1.0, help="the emulated servos' friction, x"
-    )
     args = parser.parse_args()
     for period in args.period:
         scenario = scenario_of(args, period)

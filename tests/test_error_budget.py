@@ -111,5 +111,10 @@ def test_analyze_gives_the_servos_budget_at_the_command_line(tmp_path, capsys):
     assert "the loop's margins are the LQI's" in printed
     assert "error budget of breathing at [0, 0, 0, 0, 0, 0.3]" in printed
     assert "| **encoder pose** (what the robot reads) |" in printed
+    # the crank servo's robust margins (tests/test_servo_margins.py holds their figures)
+    assert "stable for a plant gain (true / believed torque per command) of 0.13 to 2.45" in printed
+    assert "with 6 ms more delay, 0.14 to 2.07" in printed
+    assert "  holds what a shipped servo must: gain 0.5 to 2 with 6 ms more delay" in printed
     record = json.loads((out / "budget.json").read_text())
     assert record["motion"] == "breathing" and len(record["total"]) == 6
+    assert record["crank_servo_margins"][0].startswith("the crank servo's loop (f_c 2.5 Hz")

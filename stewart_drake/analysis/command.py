@@ -230,7 +230,12 @@ def _cmd_analyze(args) -> int:
             f"(controller: !LqiDriver); this scenario's controller is a "
             f"{type(scenario.controller).__name__}: its error budget instead"
         )
-        return _budget(args, scenario, x0, name, out, say, {"scenario": name})
+        record = {"scenario": name}
+        robust = _crank_servo_margins(scenario)
+        if robust is not None:
+            print("\n".join(robust))
+            record["crank_servo_margins"] = robust
+        return _budget(args, scenario, x0, name, out, say, record)
     say("linearizing the loop and computing the margins of the 6 axes ...")
     models = loop_models(scenario, x0, integrator=args.integrator)
     figures = axis_figures(models)
@@ -269,6 +274,23 @@ def _cmd_analyze(args) -> int:
     if args.budget is not None:
         return _budget(args, scenario, x0, name, out, say, {"scenario": name})
     return 0
+
+
+def _crank_servo_margins(scenario) -> list[str] | None:
+    """The crank servo's robust margins (:func:`~stewart_drake.control.servo.margins.
+    margin_lines`), or None for another controller."""
+    from ..control.servo.design import design_loop
+    from ..control.servo.driver import CrankServoDriver
+    from ..control.servo.margins import margin_lines
+    from ..run.plan import as_built
+
+    servo = scenario.controller
+    if not isinstance(servo, CrankServoDriver):
+        return None
+    hardware = as_built(scenario).hardware
+    h, d = scenario.control_period_s, 0 if hardware is None else hardware.computation_delay_periods
+    loop = design_loop(h, d, servo.bandwidth_hz, servo.observer_bandwidth_hz, servo.integral_ratio)
+    return margin_lines(loop)
 
 
 def _budget(args, scenario, x0, name: str, out: Path, say, record: dict) -> int:

@@ -198,7 +198,9 @@ def _cmd_robot(args) -> int:
             from ..station.bus.servos import SurrogateServoConfig
 
             scenario.bus.surrogate = SurrogateServoConfig.beside(scenario.bus.model)
-        _check_emulated_pose(scenario, args.emulate)
+        if args.emulate.servos is not None:
+            scenario.emulator.servos = args.emulate.servos
+        _check_emulated_pose(scenario, args.emulate.pose)
     if surrogate is not None:
         scenario.validate()
         from .session import _check_surrogate_trace
@@ -335,19 +337,22 @@ EMULATED_REPLY_TIMEOUT_S = 2.0
 
 def _start_emulator(scenario, x0, realtime: bool = False):
     """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
-    the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
+    the CPU of 1 ms; its servos and bus as the scenario's ``emulator`` draws them, ``servos``
+    on the process returned) behind it in a process of its own, resting at pose ``x0``, and point
     ``scenario.bus`` at its pseudo-terminal, with a reply timeout of
     :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
     :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it). With ``realtime``
     the emulator's threads run on SCHED_FIFO one priority below the loop, off the loop's core:
     they stand in for servos, which compute on chips of their own."""
+    from ..station.bus.servos import servo_spec
     from .emulator_process import EmulatorProcess
     from .plant_backend import behind_the_bus
 
     bus = scenario.bus
     if bus.reply_timeout_s is None:
         bus.reply_timeout_s = EMULATED_REPLY_TIMEOUT_S
-    robot = behind_the_bus(scenario)
+    servos = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+    robot = behind_the_bus(scenario, servos)
     emulator = EmulatorProcess(
         x0=x0,
         ids=bus.ids,
@@ -357,6 +362,8 @@ def _start_emulator(scenario, x0, realtime: bool = False):
         start_timeout_s=300.0,
         realtime=realtime,
         surrogate=bus.surrogate,
+        servos=servos,
+        baud_rate=bus.baud_rate,
     ).start()
     bus.port = emulator.port
     return emulator
@@ -377,8 +384,11 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 file=sys.stderr,
                 flush=True,
             )
-            emulator = _start_emulator(scenario, args.emulate, args.realtime)
-            print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
+            emulator = _start_emulator(scenario, args.emulate.pose, args.realtime)
+            print(
+                f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time): "
+                f"{emulator.servos.summary()}"
+            )
         if args.calibrate is not None or args.dry_run:
             return _read_only(args, scenario)
         meshcat = None

@@ -20,6 +20,7 @@ from __future__ import annotations
 import gc
 import multiprocessing
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -28,9 +29,25 @@ from ..base.errors import BusError
 from ..robot.kinematics import X_HOME
 
 
-def _serve(  # pragma: no cover
-    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, realtime, surrogate
-) -> None:
+@dataclass(frozen=True)
+class _ChildArgs:
+    """What the child's emulator is made of (:class:`EmulatorProcess`'s arguments, the scenario
+    as YAML): pickled to the spawned process."""
+
+    ids: list
+    model: str
+    x0: np.ndarray
+    scenario_yaml: str
+    tick_s: float
+    max_step_s: float
+    zero_counts: list | None
+    realtime: bool
+    surrogate: Any = None
+    servos: Any = None
+    baud_rate: int = 1_000_000
+
+
+def _serve(conn, args: _ChildArgs) -> None:  # pragma: no cover
     """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
     ("port", the port), serves until told to stop, then sends the record. If it cannot start it
     sends ("error", one line) instead of a traceback on the terminal.
@@ -40,17 +57,22 @@ def _serve(  # pragma: no cover
     emulator and must find it still answering, as servos keep answering a stopped program. It
     ends when the parent says stop or its end of the pipe closes (the parent gone)."""
     import signal
+    import sys
 
+    # The bus thread sleeps out each packet's time on the wire while the model thread steps the
+    # plant: Python's default 5 ms between the threads' turns at the GIL would delay each reply
+    # by up to that, several times a packet; servos answer on their own chips.
+    sys.setswitchinterval(2e-4)
     for name in ("SIGINT", "SIGTERM", "SIGHUP"):  # the session's (SessionSignals)
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), signal.SIG_IGN)
     try:
-        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, surrogate)
+        emu = _start(args)
         # What start-up made (Drake, the plant, the modules) is never scanned again: a full
         # collection over it paused the servos' answers by 35 to 45 ms every few minutes.
         gc.collect()
         gc.freeze()
-        _start_threads(emu, realtime)
+        _start_threads(emu, args.realtime)
     except Exception as err:  # noqa: BLE001 - reported to the parent in one line
         conn.send(("error", f"{type(err).__name__}: {err}".splitlines()[0]))
         return
@@ -68,7 +90,8 @@ def _serve(  # pragma: no cover
 
 def _start_threads(emu, realtime: bool) -> None:  # pragma: no cover
     """Start the emulator's threads; with ``realtime``, on SCHED_FIFO one priority below the
-    loop's (:data:`~.realtime.PRIORITY`) and on every core but the loop's
+    loop's (:data:`~.realtime.PRIORITY`; the plant's thread one below the bus's) and on every
+    core but the loop's
     (:func:`~.realtime.loop_core`), where the OS allows: the threads inherit the policy and
     the cores of the thread that starts them, which then goes back to the normal policy."""
     import os
@@ -90,6 +113,15 @@ def _start_threads(emu, realtime: bool) -> None:  # pragma: no cover
         pass
     try:
         emu.start()
+        model = getattr(emu._model_thread, "native_id", None)
+        if old is not None and model is not None:
+            # The plant one priority below the bus: a servo answers on its own chip, so a reply
+            # whose time is up runs before the next step of the plant (on one core, threads of
+            # one FIFO priority take turns only when one blocks).
+            try:
+                os.sched_setscheduler(model, os.SCHED_FIFO, os.sched_param(PRIORITY - 2))
+            except OSError:
+                pass
     finally:
         if old is not None:
             try:
@@ -127,22 +159,30 @@ class RecordRows:
         return np.concatenate(self._blocks)[: self._n]
 
 
-def _start(  # pragma: no cover
-    ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, surrogate=None
-):
-    """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant, and
-    with ``surrogate`` (a :class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`)
-    its stage as the last servo, the carriage at mid-travel."""
+def _start(args: _ChildArgs):  # pragma: no cover
+    """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant (with
+    ``servos``, an :class:`~stewart_drake.station.bus.emulator_config.EmulatedServos` that
+    departs from the controller's model, :class:`~.plant_backend.RealisticServos` and the bus's
+    timing), and with ``surrogate`` (a :class:`~stewart_drake.station.bus.servos.
+    SurrogateServoConfig`) its stage as the last servo, the carriage at mid-travel."""
     from ..run.scenario import _scenario_from_yaml
+    from ..station.bus.bus_timing import BusTiming
     from ..station.bus.emulator import BusEmulator
     from ..station.bus.servo_models import FirstOrderServos, StackedServos
-    from .plant_backend import StationServos, dynamixel_scenario
+    from .plant_backend import RealisticServos, StationServos, dynamixel_scenario
 
-    scenario = dynamixel_scenario(model, _scenario_from_yaml(scenario_yaml))
+    ids, model, x0, servos = list(args.ids), args.model, args.x0, args.servos
+    zero_counts, surrogate = args.zero_counts, args.surrogate
+    scenario = dynamixel_scenario(model, _scenario_from_yaml(args.scenario_yaml))
+    departs = servos is not None and servos.departs()
+    base = RealisticServos if departs else StationServos
 
-    class Recorded(StationServos):
+    class Recorded(base):  # type: ignore[valid-type, misc]
         def __init__(self):
-            super().__init__(scenario, model, x0)
+            if departs:
+                super().__init__(scenario, model, x0, servos)
+            else:
+                super().__init__(scenario, model, x0)
             station = self.station
             self._port = station.GetOutputPort("platform_state")
             self._context = station.GetMyContextFromRoot(self.simulator.get_context())
@@ -164,14 +204,29 @@ def _start(  # pragma: no cover
         )
         zero_counts = [*cranks, surrogate.zero_counts]
         models = {surrogate.id: surrogate.model}
+    timing = None
+    if servos is not None and (
+        servos.latency_timer_ms or servos.reply_jitter_us or servos.return_delay_us
+        or servos.crc_error_rate or servos.timeout_rate
+    ):  # fmt: skip
+        timing = BusTiming(
+            args.baud_rate,
+            servos.latency_timer_ms,
+            servos.reply_jitter_us,
+            servos.crc_error_rate,
+            servos.timeout_rate,
+            servos.seed,
+        )
     return BusEmulator(
         ids,
         model,
         backend=backend,
         zero_counts=zero_counts,
-        tick_s=tick_s,
-        max_step_s=max_step_s,
+        tick_s=args.tick_s,
+        max_step_s=args.max_step_s,
         models=models,
+        timing=timing,
+        return_delay_us=0.0 if servos is None else servos.return_delay_us,
     )
 
 
@@ -195,6 +250,10 @@ class EmulatorProcess:
             (:class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`): its stage
             (:meth:`~stewart_drake.station.bus.servo_models.FirstOrderServos.linear_stage`) answers
             as one more servo, its carriage at mid-travel, on the plant's clock.
+        servos: None (the controller's own model), or the servos as built
+            (:class:`~stewart_drake.station.bus.emulator_config.EmulatedServos`, drawn by a
+            scenario's ``emulator``): their drive, friction and encoders, and the bus's timing.
+        baud_rate: the bus's, bps (the wire's time of each packet).
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after
             :meth:`close`).
@@ -214,10 +273,12 @@ class EmulatorProcess:
         zero_counts=None,
         realtime: bool = False,
         surrogate=None,
+        servos=None,
+        baud_rate: int = 1_000_000,
     ):
         from ..run.scenario import Scenario, dump_scenario
 
-        self._args = (
+        self._args = _ChildArgs(
             list(ids),
             model,
             np.asarray(x0, dtype=float),
@@ -227,8 +288,12 @@ class EmulatorProcess:
             None if zero_counts is None else [int(c) for c in zero_counts],
             bool(realtime),
             surrogate,
+            servos,
+            int(baud_rate),
         )
         self.start_timeout_s = start_timeout_s
+        #: The servos behind the bus (None: the controller's own model).
+        self.servos = servos
         self.port: str | None = None
         self.slipped_s = float("nan")
         self._record = np.zeros((0, 13))
@@ -237,7 +302,7 @@ class EmulatorProcess:
     def start(self) -> EmulatorProcess:
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
-        self._process = context.Process(target=_serve, args=(child, *self._args), daemon=True)
+        self._process = context.Process(target=_serve, args=(child, self._args), daemon=True)
         self._process.start()
         try:
             deadline = time.monotonic() + self.start_timeout_s

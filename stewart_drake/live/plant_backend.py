@@ -63,17 +63,53 @@ def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     return dataclasses.replace(base, hardware=hardware)
 
 
-def behind_the_bus(scenario, **changes):
+def behind_the_bus(scenario, servos=None, **changes):
     """The scenario the bus emulator simulates behind a robot's ``scenario``: no bus, the plant
     at a 2 ms step (half the CPU of 1 ms), the station's control and logs at the same period,
-    and ``changes`` (fields of the scenario, e.g. ``robot_as_built``)."""
+    and ``changes`` (fields of the scenario, e.g. ``robot_as_built``).
+
+    With ``servos`` (:class:`~stewart_drake.station.bus.emulator_config.EmulatedServos`), the
+    robot departs from the one the controller believes as they say: its servos' rotors and
+    viscous friction scaled, their gear play, the platform's mass, and its temperature (its
+    lengths at ``lengths_at_c`` + the rise, the controller not told); the servos' drive and
+    friction budget are :class:`RealisticServos`'."""
     import copy
 
     plant = copy.copy(scenario.plant)
     plant.time_step = 0.002
+    if servos is not None and servos.departs():
+        changes = _departed(scenario, servos) | changes
     return dataclasses.replace(
         scenario, bus=None, plant=plant, control_period_s=0.002, log_period_s=0.002, **changes
     )
+
+
+def _departed(scenario, servos) -> dict:
+    """The scenario fields of the robot ``servos`` describe (:func:`behind_the_bus`)."""
+    from ..station.bus.servo_physics import FRICTION
+    from ..station.hardware import Hardware, Motors
+
+    hardware = scenario.hardware
+    if hardware is None:
+        bus = scenario.bus
+        hardware = bus.hardware(scenario.control_period_s) if bus is not None else Hardware()
+    base = hardware.motors.build()
+    rest = servos.friction[:, FRICTION["coulomb_Nm"]] + servos.friction[:, FRICTION["stribeck_Nm"]]
+    servo = dataclasses.replace(
+        base,
+        rotor_inertia=base.rotor_inertia * servos.rotor_inertia_scale,
+        viscous_damping=base.viscous_damping * servos.viscous_scale,
+        coulomb_friction_Nm=float(np.max(rest)),  # each step sets each servo's own budget
+        backlash_rad=servos.backlash_rad,
+    )
+    out = {
+        "hardware": dataclasses.replace(hardware, motors=Motors.from_value(servo)),
+        "payload_scale": scenario.payload_scale * servos.mass_scale,
+    }
+    if servos.temperature_rise_K:
+        out["temperature_c"] = scenario.robot.build().lengths_at_c + servos.temperature_rise_K
+        out["compensate_temperature"] = False
+    return out
 
 
 class StationServos(ServoBackend):
@@ -116,3 +152,76 @@ class StationServos(ServoBackend):
     def velocities_rad_s(self):
         station = self.station
         return crank_rates(station.plant, self._plant_context, station.handles)
+
+
+class RealisticServos(StationServos):
+    """:class:`StationServos` whose servos are ``servos``
+    (:class:`~stewart_drake.station.bus.emulator_config.EmulatedServos`): each servo's current
+    follows its Goal Current through the current loop's lag, within what its supply drives
+    against the back-EMF (:func:`~stewart_drake.station.bus.servo_physics.current_step`); its
+    torque is ``k i`` with its own motor constant; its gear train's friction budget
+    (:func:`~stewart_drake.station.bus.servo_physics.friction_budget`, the load taken as the
+    motor's torque, which the closed chain carries) is set each step as the effort limit of its
+    crank's friction actuator, which SAP applies implicitly as the torque that stops the joint,
+    clipped to it; its encoder reads with its transition noise and non-linearity (the X series'
+    on the output shaft, the DYNAMIXEL-P's on the motor's, inside the gears' play), in counts,
+    the non-linearity's error at angle 0 taken into the zero count as a calibration there does.
+
+    Args:
+        scenario: the robot behind the bus (:func:`behind_the_bus` with ``servos``).
+        model: the bus's servo model.  x0: (6,) the pose it starts at.  servos: the set.
+    """
+
+    def __init__(self, scenario, model: str, x0, servos):
+        super().__init__(scenario, model, x0)
+        from ..station.bus.servo_physics import warm_up
+
+        warm_up()
+        self.servos = servos
+        plant = self.station.plant
+        # crank k's friction actuator is "friction_k" (plant.add_stewart_plant)
+        self._friction = [plant.GetJointActuatorByName(f"friction_{k}") for k in range(6)]
+        self._motors = list(self.station.handles.motors)
+        self._i = np.zeros(6)
+        self._rng = np.random.default_rng([servos.seed, 1])
+        self._count = self.spec.rad_per_count
+        self._budget = np.zeros(6)
+
+    def advance(self, dt_s, current_A):
+        from ..station.bus.servo_physics import current_step, friction_budget
+
+        target = np.asarray(current_A, dtype=float)
+        s = self.servos
+        if not np.any(target) and not np.any(self._i):  # at rest, unpowered
+            super().advance(dt_s, target)
+            return
+        v = np.array([m.get_angular_rate(self._plant_context) for m in self._motors])
+        for k in range(6):
+            self._i[k] = current_step(
+                self._i[k], target[k], dt_s, s.current_time_constant_s, v[k], s.supply_V,
+                s.k_Nm_per_A[k], s.resistance_ohm[k], s.current_limit_A,
+            )  # fmt: skip
+        tau = s.k_Nm_per_A * self._i
+        for k, actuator in enumerate(self._friction):
+            self._budget[k] = friction_budget(s.friction[k], v[k], tau[k], -tau[k])
+            actuator.set_effort_limit(float(self._budget[k]))
+        self._torque_port.FixValue(self._root, tau)
+        self.simulator.AdvanceTo(self._root.get_time() + dt_s)
+
+    def currents_A(self) -> np.ndarray:
+        """(6,) the currents the servos drive now, A (Present Current)."""
+        return self._i.copy()
+
+    def positions_rad(self):
+        s = self.servos
+        offsets = self.station.plan.plant_geometry.encoder_offsets
+        if s.family == "P":  # the encoder on the motor's shaft: inside the play
+            theta = np.array([m.get_angle(self._plant_context) for m in self._motors])
+        else:
+            theta = super().positions_rad() - offsets
+        # the non-linearity as the zero calibration leaves it (``robot --calibrate 0`` reads the
+        # counts at angle 0, its error there with them)
+        error = s.inl_counts * (np.sin(theta + s.inl_phase) - np.sin(s.inl_phase))
+        if s.encoder_noise_counts > 0:
+            error = error + self._rng.normal(0.0, s.encoder_noise_counts, 6)
+        return theta + offsets + error * self._count

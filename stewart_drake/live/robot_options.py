@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from typing import NamedTuple
 
 from ..execution.options import positive_float
 
@@ -61,13 +62,16 @@ def add_drive_arguments(rob) -> None:
     the surrogate's stage, Meshcat and teleoperation."""
     rob.add_argument(
         "--emulate",
-        type=pose6,
+        type=emulate_choice,
         nargs="?",
-        const=[0.0, 0.0, 0.0, 0.0, 0.0, 0.28],
+        const=EmulateChoice(None, REST_POSE),
         default=None,
-        metavar="POSE",
+        metavar="SERVOS@POSE",
         help="rehearse on the bus emulator (a pseudo-terminal, the robot's Drake plant at real "
-        "time behind it) resting at POSE phi,theta,psi,X,Y,Z (default 0,0,0,0,0,0.28)",
+        "time behind it): SERVOS realistic (the scenario's emulator section: servos, bus "
+        "timing and robot as built, drawn from its seed; the default) or ideal (the "
+        "controller's own model), resting at POSE phi,theta,psi,X,Y,Z (default "
+        "0,0,0,0,0,0.28); either alone, or both as ideal@0,0,0,0,0,0.3",
     )
     rob.add_argument(
         "--realtime",
@@ -95,6 +99,40 @@ def add_drive_arguments(rob) -> None:
     )
 
 
+#: Where an emulated robot rests by default: phi, theta, psi (rad), X, Y, Z (m).
+REST_POSE = (0.0, 0.0, 0.0, 0.0, 0.0, 0.28)
+
+
+class EmulateChoice(NamedTuple):
+    """``--emulate``'s value: which servos (None: the scenario's ``emulator.servos``) and the
+    pose the robot rests at (rad, m)."""
+
+    servos: str | None
+    pose: tuple
+
+
+def emulate_choice(text: str) -> EmulateChoice:
+    """``realistic``, ``ideal``, a POSE (:func:`pose6`), or ``SERVOS@POSE``."""
+    from ..station.bus.emulator_config import SERVOS
+
+    servos, _, pose = text.partition("@") if "@" in text else (text, "", "")
+    if servos in SERVOS:
+        return EmulateChoice(servos, tuple(pose6(pose)) if pose else REST_POSE)
+    if "@" in text:
+        raise argparse.ArgumentTypeError(
+            f"give SERVOS@POSE with SERVOS one of {', '.join(SERVOS)}, got {servos!r}"
+        )
+    if "," in text:  # a pose: its own words
+        return EmulateChoice(None, tuple(pose6(text)))
+    try:
+        return EmulateChoice(None, tuple(pose6(text)))
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"give {' or '.join(SERVOS)}, a POSE phi,theta,psi,X,Y,Z in rad and m, or both as "
+            f"ideal@POSE, got {text!r}"
+        ) from None
+
+
 def pose6(text: str) -> list[float]:
     """Six comma-separated finite numbers phi,theta,psi,X,Y,Z (rad, m)."""
     try:
@@ -112,4 +150,7 @@ __all__ = [
     "add_session_arguments",
     "add_drive_arguments",
     "pose6",
+    "emulate_choice",
+    "EmulateChoice",
+    "REST_POSE",
 ]

@@ -64,6 +64,7 @@ from ..references.trajectories import NamedReference, SineReference
 from ..robot.geometry import TEMPERATURE_RANGE_C, StewartGeometry
 from ..robot.statics import FEEDFORWARD_MODES
 from ..robot.tolerances import RobotTolerances
+from ..station.bus.emulator_config import EmulatorConfig
 from ..station.bus.servos import DynamixelBusConfig
 from ..station.guard import GuardConfig
 from ..station.hardware import Hardware
@@ -221,6 +222,9 @@ class Scenario:
         surrogate: None, or the external surrogate's stage beside the platform and the signal
             it follows (:class:`~stewart_drake.station.surrogate.axis.SurrogateAxis`,
             docs/surrogate.md).
+        emulator: the servos behind the bus emulator (``robot --emulate``), as a built robot's
+            depart from the controller's model
+            (:class:`~stewart_drake.station.bus.emulator_config.EmulatorConfig`).
     Raises:
         InvalidConfigError: (``validate``, by every builder and at construction) a field out
             of range, a period not a whole multiple of the one it runs on, a wrong type; named
@@ -257,6 +261,7 @@ class Scenario:
     bus: DynamixelBusConfig | None = None
     lcm: LcmConfig | None = None
     surrogate: SurrogateAxis | None = None
+    emulator: EmulatorConfig = field(default_factory=EmulatorConfig)
 
     def __post_init__(self):
         self.validate()
@@ -365,6 +370,7 @@ class Scenario:
                     )
         if self.lcm is not None:
             self.lcm.validate(self.plant.time_step)
+        self.emulator.validate()
         return self
 
     #: The fields that hold a choice or a section, and the classes each may hold.
@@ -386,6 +392,7 @@ class Scenario:
         "bus": (type(None), DynamixelBusConfig),
         "lcm": (type(None), LcmConfig),
         "surrogate": (type(None), SurrogateAxis),
+        "emulator": (EmulatorConfig,),
     }
 
     def _validate_types(self) -> None:

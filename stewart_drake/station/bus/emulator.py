@@ -28,6 +28,7 @@ import numpy as np
 
 from ...base.errors import InvalidConfigError
 from . import protocol as p
+from .bus_timing import BusTiming
 from .servo_models import FirstOrderServos, ServoBackend
 from .servos import ServoSpec, servo_spec
 
@@ -38,7 +39,7 @@ TABLE_SIZE = p.X_SERIES.size
 class _Servo:
     """One servo's control table and watchdog clock."""
 
-    def __init__(self, servo_id: int, spec: ServoSpec, ambient_C: float):
+    def __init__(self, servo_id: int, spec: ServoSpec, ambient_C: float, return_delay_us=0.0):
         self.id, self.spec = servo_id, spec
         #: The family's addresses (:class:`~.protocol.ControlTable`).
         self.items = t = spec.table
@@ -46,6 +47,9 @@ class _Servo:
         self.put(p.MODEL_NUMBER, spec.model_number)
         self.put(p.FIRMWARE_VERSION, 48)
         self.put(p.ID, servo_id)
+        self.put(
+            p.RETURN_DELAY_TIME, min(254, round(return_delay_us * 1e-6 / p.RETURN_DELAY_UNIT_S))
+        )
         self.put(t.operating_mode, 3)  # factory: Position Control Mode
         self.put(t.temperature_limit, 80)
         self.put(t.current_limit, spec.current_limit_max)
@@ -61,6 +65,10 @@ class _Servo:
     def put(self, item, value: int) -> None:
         address, size = item
         self.table[address : address + size] = p.to_unsigned(value, size).to_bytes(size, "little")
+
+    def return_delay_s(self) -> float:
+        """The Return Delay Time its table holds, s."""
+        return self.get(p.RETURN_DELAY_TIME) * p.RETURN_DELAY_UNIT_S
 
     @property
     def watchdog_tripped(self) -> bool:
@@ -137,6 +145,13 @@ class BusEmulator:
             its own clock says it is. The bus watchdog still counts wall time. For tests and
             rehearsals of a loop whose period is ``command_step_s``; a real bus has no such
             mode.
+        timing: None (default): packets at the pseudo-terminal's memory speed. A
+            :class:`~.bus_timing.BusTiming`: each instruction acts after its bytes' time on the
+            wire, each reply comes after each answering servo's Return Delay Time (its control
+            table's), its bytes' time and the USB adapter's latency timer, with jitter, and a
+            share of the status packets corrupt or lost.
+        return_delay_us: the Return Delay Time every servo's table starts with, us (the
+            factory's is 500; the driver may write its own).
 
     Raises:
         InvalidConfigError: bad ids or model, a backend of another size.
@@ -153,6 +168,8 @@ class BusEmulator:
         max_step_s: float = 0.02,
         command_step_s: float | None = None,
         models: dict | None = None,
+        timing: BusTiming | None = None,
+        return_delay_us: float = 0.0,
     ):
         ids = [int(i) for i in ids]
         if command_step_s is not None and not (0 < command_step_s < math.inf):
@@ -172,7 +189,8 @@ class BusEmulator:
             np.full(len(ids), spec.zero_count) if zero_counts is None else np.asarray(zero_counts)
         )
         specs = {int(i): servo_spec(m, torque_control=False) for i, m in (models or {}).items()}
-        self.servos = {i: _Servo(i, specs.get(i, spec), ambient_C) for i in ids}
+        self.servos = {i: _Servo(i, specs.get(i, spec), ambient_C, return_delay_us) for i in ids}
+        self.timing = timing
         self.tick_s = float(tick_s)
         self.max_step_s = float(max_step_s)
         self.command_step_s = None if command_step_s is None else float(command_step_s)
@@ -182,6 +200,8 @@ class BusEmulator:
         #: Every instruction packet received, (perf_counter time, Packet), newest last (bounded).
         self.received: list[tuple[float, p.Packet]] = []
         self.muted = False
+        #: What stopped the model, one line (None while it runs).
+        self.model_error: str | None = None
         #: Ids that neither answer nor execute (:meth:`disconnect`).
         self.disconnected: set[int] = set()
         self._lock = threading.Lock()  # the control tables
@@ -295,20 +315,58 @@ class BusEmulator:
                     return
                 time.sleep(self.tick_s)  # the driver closed its end: wait for it to reopen
                 continue
-            with self._lock:
-                while True:
+            clock = time.perf_counter()  # when the bytes were there
+            while True:
+                with self._lock:
                     packet, used, crc_ok = p.parse_packet(buf)
                     del buf[:used]
                     if packet is None:
                         break
                     self._log(packet)
-                    if not self.muted:
-                        reply = self._answer(packet, crc_ok)
-                        if reply:
-                            try:
-                                os.write(self._master, reply)
-                            except BlockingIOError:
-                                self.dropped_bytes += len(reply)  # nobody reads the port
+                if self.muted:
+                    continue
+                # With a timing: a write acts once its bytes are on the wire; a read is
+                # answered from the values of when it arrived, its reply held until its bytes,
+                # the servos' return delays and the adapter's timer are through. One sleep a
+                # packet: each wake-up waits for the model thread's turn at the GIL.
+                instruction_s = 0.0 if self.timing is None else self.timing.instruction_s(used)
+                reads = packet.instruction in (p.READ, p.SYNC_READ, p.PING)
+                if instruction_s and not reads:
+                    clock = _sleep_until(clock + instruction_s)
+                with self._lock:
+                    reply = self._answer(packet, crc_ok)
+                    late_s = 0.0
+                    if reply and self.timing is not None:
+                        reply, late_s = self._timed(reply)
+                if reads and (instruction_s or late_s):
+                    clock = _sleep_until(clock + instruction_s + late_s)
+                if reply:
+                    try:
+                        os.write(self._master, reply)
+                    except BlockingIOError:
+                        self.dropped_bytes += len(reply)  # nobody reads the port
+
+    def _timed(self, reply: bytes) -> tuple[bytes, float]:
+        """``reply`` (status packets, concatenated) as the bus delivers it, and when: each
+        status after its servo's Return Delay Time and its bytes, a lost one ending the reply
+        (the servos after it wait for it), a corrupt one with a byte changed; the delay after
+        the instruction, s (:meth:`~.bus_timing.BusTiming.reply_s`)."""
+        timing = self.timing
+        assert timing is not None
+        out, statuses, k = bytearray(), [], 0
+        while k + 7 <= len(reply):
+            n = 7 + int.from_bytes(reply[k + 5 : k + 7], "little")
+            status = bytearray(reply[k : k + n])
+            servo = self.servos.get(status[4])
+            fate = timing.fate()
+            if fate == "lost":
+                break
+            if fate == "corrupt":
+                status[-3] ^= 0x5A  # a byte before the CRC: the CRC no longer holds
+            out += status
+            statuses.append((n, servo.return_delay_s() if servo is not None else 0.0))
+            k += n
+        return bytes(out), timing.reply_s(statuses)
 
     def _log(self, packet: p.Packet) -> None:
         self.received.append((time.perf_counter(), packet))
@@ -316,10 +374,17 @@ class BusEmulator:
             del self.received[:5000]
 
     def _run_model(self) -> None:
-        while not self._stop.is_set():
-            wait = self._step_model()
-            if wait > 0:
-                self._stop.wait(wait)
+        """Step the model until stopped; a model that raises goes silent with the bus (its
+        servos stop answering: the driver's next read times out and it removes the torque),
+        the error kept in ``model_error``."""
+        try:
+            while not self._stop.is_set():
+                wait = self._step_model()
+                if wait > 0:
+                    self._stop.wait(wait)
+        except Exception as err:  # noqa: BLE001 - the servos fall silent, the error is kept
+            self.model_error = f"{type(err).__name__}: {err}"
+            self.muted = True
 
     def _step_model(self) -> float:
         """Step the backend towards now (at most ``max_step_s``; a servo's watchdog trip at
@@ -382,6 +447,8 @@ class BusEmulator:
 
     def _update_present(self) -> None:
         q, v = self.backend.positions_rad(), self.backend.velocities_rad_s()
+        drives = getattr(self.backend, "currents_A", None)
+        currents = drives() if drives is not None else None
         for k, i in enumerate(self.ids):
             s = self.servos[i]
             spec, t = s.spec, s.items
@@ -389,7 +456,8 @@ class BusEmulator:
             s.put(t.present_position, int(counts))
             s.put(t.present_velocity, round(float(v[k]) / spec.velocity_unit_rad_s))
             unit = spec.current_unit_A
-            s.put(t.present_current, round(s.current_A() / unit) if unit else 0)
+            i = s.current_A() if currents is None or k >= len(currents) else currents[k]
+            s.put(t.present_current, round(i / unit) if unit else 0)
 
     # --- the protocol ------------------------------------------------------------------------
 
@@ -463,6 +531,14 @@ class BusEmulator:
         if packet.servo_id == p.BROADCAST_ID:
             return b""
         return self._status(self.servos[targets[0]], p.ERR_INSTRUCTION)
+
+
+def _sleep_until(t: float) -> float:
+    """Sleep until ``time.perf_counter()`` is ``t`` (at once if past); returns ``t``."""
+    wait = t - time.perf_counter()
+    if wait > 0:
+        time.sleep(wait)
+    return t
 
 
 def main(argv=None) -> None:

@@ -1,0 +1,123 @@
+"""The robot on servos as they are: each shipped bus robot's breathing against the bus emulator
+with the controller's own servos (ideal), with the realistic default (``emulator.servos:
+realistic``: every departure drawn from the seed), and with each departure alone at the edge of
+its range, the rest ideal: one table (docs/robot.md, "Servos as they are").
+
+Each row is ``stewart-drake robot breathing --emulate``'s own session (as
+:mod:`bus_accuracy`): the true pose (the emulator's plant) and the encoders' pose against the
+reference, RMS / peak per axis over the motion after its first ``--skip`` s, whether the true
+pose's peak X stayed within 1 mm (a loop that broke into oscillation does not), the loop's
+CPU time a period (median) and its deadline misses.
+
+Usage: python benchmarks/servo_departures.py [--scenario paper_bus phantom_bus] [--duration 20]
+    [--skip 8] [--rows NAME ...] [--markdown FILE]
+"""
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bus_accuracy import AXES, emulated, scenario_of  # noqa: E402
+
+#: (name, the emulator's settings): ideal, the realistic default, each departure alone at the
+#: edge of its range (emulator_config.py's ranges; the acceptance's kt 0.7 / 1.3).
+ROWS = (
+    ("ideal", ["emulator.servos=ideal"]),
+    ("realistic (seed 0)", []),
+    ("realistic, kt x0.7", ["emulator.kt_scale=0.7"]),
+    ("realistic, kt x1.3", ["emulator.kt_scale=1.3"]),
+    ("realistic, rotor x0.5", ["emulator.rotor_inertia_scale=0.5"]),
+    ("realistic, rotor x2", ["emulator.rotor_inertia_scale=2"]),
+    ("kt x0.7 alone", ["emulator.servos=ideal", "emulator.kt_scale=0.7"]),
+    ("kt x1.3 alone", ["emulator.servos=ideal", "emulator.kt_scale=1.3"]),
+    ("rotor x0.5 alone", ["emulator.servos=ideal", "emulator.rotor_inertia_scale=0.5"]),
+    ("rotor x2 alone", ["emulator.servos=ideal", "emulator.rotor_inertia_scale=2"]),
+    ("friction x0.5 alone", ["emulator.servos=ideal", "emulator.friction_scale=0.5"]),
+    ("friction x2 alone", ["emulator.servos=ideal", "emulator.friction_scale=2"]),
+    ("current lag x2 alone", ["emulator.servos=ideal", "emulator.current_lag_scale=2"]),
+    ("play at the e-Manual's most", ["emulator.servos=ideal", "emulator.backlash_rad=BACKLASH"]),
+    ("encoder noise 1 count", ["emulator.servos=ideal", "emulator.encoder_noise_counts=1"]),
+    ("non-linearity 5.7 counts", [
+        "emulator.servos=ideal", "emulator.encoder_nonlinearity_counts=5.7",
+    ]),
+    ("+5 K", ["emulator.servos=ideal", "emulator.temperature_rise_K=5"]),
+    ("mass +3 %", ["emulator.servos=ideal", "emulator.mass_scale=1.03"]),
+    ("factory bus: 500 us, 16 ms timer", [
+        "emulator.servos=ideal", "emulator.return_delay_us=500", "emulator.latency_timer_ms=16",
+        "emulator.reply_jitter_us=100",
+    ]),
+)  # fmt: skip
+
+
+def row(scenario_name: str, settings: list[str], args) -> dict:
+    """One session: {true, encoders: (rms (6,), peak (6,)), cpu_ms, misses, periods}."""
+    from stewart_drake.station.bus.emulator_config import BACKLASH_MAX_RAD
+    from stewart_drake.station.bus.servos import servo_spec
+
+    args.set = []
+    family = servo_spec(scenario_of(args, 0.01).bus.model, torque_control=False).table.family
+    args.set = [s.replace("BACKLASH", repr(BACKLASH_MAX_RAD[family])) for s in settings]
+    scenario = scenario_of(args, 0.01)
+    with tempfile.TemporaryDirectory() as out:
+        scenario.guard.divergence_dir = f"{out}/diverged"
+        e_true, e_enc, cpu, misses, n, _ = emulated(scenario, args, 0.01, 0, out)
+    return {
+        "true": (np.sqrt(np.mean(e_true**2, axis=0)), np.max(np.abs(e_true), axis=0)),
+        "encoders": (np.sqrt(np.mean(e_enc**2, axis=0)), np.max(np.abs(e_enc), axis=0)),
+        "cpu_ms": float(np.median(cpu)),
+        "misses": int(misses),
+        "periods": int(n),
+    }
+
+
+def markdown(scenario_name: str, rows: list[tuple[str, dict]]) -> list[str]:
+    """The rows as a Markdown table: RMS / peak, urad and um, true pose then encoders' X."""
+    from stewart_drake.base.tables import markdown_lines
+
+    header = [f"`{scenario_name}`, breathing", *(f"{a} (true)" for a in AXES)]
+    header += ["encoders X", "peak X < 1 mm", "CPU ms", "misses"]
+    body = []
+    for name, r in rows:
+        rms, peak = r["true"]
+        cells = [f"{1e6 * a:.0f} / {1e6 * b:.0f}" for a, b in zip(rms, peak)]
+        stable = "yes" if peak[3] < 1e-3 else "no"
+        body.append(
+            [name, *cells, f"{1e6 * r['encoders'][0][3]:.0f}", stable, f"{r['cpu_ms']:.2f}",
+             f"{r['misses']} of {r['periods']}"]
+        )  # fmt: skip
+    return markdown_lines(header, body)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", nargs="+", default=["paper_bus", "phantom_bus"])
+    parser.add_argument("--duration", type=float, default=20.0, help="s of the motion")
+    parser.add_argument("--skip", type=float, default=8.0, help="s of the motion not measured")
+    parser.add_argument("--rows", nargs="+", default=None, help="only these rows (their names)")
+    parser.add_argument("--markdown", default=None, help="also write the tables to this file")
+    args = parser.parse_args()
+    args.motion, args.param, args.breakdown = "breathing", [], False
+    tables = []
+    for name in args.scenario:
+        args.scenario_name = name
+        rows = []
+        for label, settings in ROWS:
+            if args.rows and label not in args.rows:
+                continue
+            args.scenario = name
+            r = row(name, settings, args)
+            rows.append((label, r))
+            print(markdown(name, [(label, r)])[-1], flush=True)  # the row as it comes
+        tables += markdown(name, rows) + [""]
+    print("\n".join(tables))
+    if args.markdown:
+        Path(args.markdown).write_text("\n".join(tables) + "\n")
+
+
+if __name__ == "__main__":
+    main()
