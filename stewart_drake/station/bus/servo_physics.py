@@ -1,7 +1,8 @@
 """A servo as it is, where the controller's model stops: its drive (the supply voltage, the PWM
 duty, the winding's resistance and back-EMF, the current loop's lag and limit, the firmware's
-position loop) and its gear train's friction, compiled with numba: the bench on which real
-servos are identified (:mod:`stewart_drake.actuator`) runs these functions.
+position loop) and its gear train's friction, compiled with numba: the bus emulator's servos as
+they are (:class:`~stewart_drake.live.plant_backend.RealisticServos`) and the bench on which
+real servos are identified (:mod:`stewart_drake.actuator`) run these functions.
 
 Conventions, at the output shaft, SI: ``v`` the shaft's rate (rad/s), ``tau_m`` the motor's
 torque through the gears, ``tau_e`` the load's torque on the shaft (gravity on a bench), both
