@@ -185,12 +185,15 @@ def test_the_compiled_step_is_its_python_form(geometry, d):
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
 
 
-def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geometry):
+@pytest.mark.parametrize("share", [1.0, 0.5, 0.0])
+def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geometry, share):
     """The torque of a first update from the state at t = 0, computed here with the batched
     IK and Jacobian (not the compiled kernels), the estimator's correction, the gain and the
-    friction's smoothed sign."""
+    friction's smoothed sign: ``share`` of it the way the angle error closes, the rest the
+    reference's rate's; and the estimator's prediction for the next period with the command
+    that acts then, the one pending (none at t = 0), not the one just computed."""
     rng = np.random.default_rng(7)
-    ctrl = _controller(geometry, d=1, torque_limit_Nm=None)
+    ctrl = _controller(geometry, d=1, torque_limit_Nm=None, friction_direction_share=share)
     context = ctrl.CreateDefaultContext()
     x_d, theta_read, T_ff = _inputs(geometry, rng)
     x0 = X_HOME
@@ -198,13 +201,17 @@ def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geom
     # the state at t = 0: the estimator at home, at rest
     theta0 = kinematics.ik(geometry, x0)
     x_bar = np.column_stack([theta0, np.zeros(6), np.zeros(6)])
-    x_hat = x_bar + np.outer(theta_read - theta0, loop.L)
     th_d = kinematics.ik(geometry, x_d[:6])
     w_d = kinematics.jacobian(geometry, x_d[:6], th_d) @ x_d[6:12]
     lead = 0.014
     x_l = x_d[:6] + x_d[6:12] * lead + 0.5 * x_d[12:] * lead**2
     v_l = x_d[6:12] + x_d[12:] * lead
     w_l = kinematics.jacobian(geometry, x_l) @ v_l
+    # half the cranks read well ahead of their reference the way it turns: the way their error
+    # closes is against the reference's rate there, so the two senses part
+    ahead = np.array([1.0, 0.0, 1.0, 0.0, 1.0, 0.0]) * 0.03 * np.sign(w_l)
+    theta_read = theta_read + (th_d - theta_read) * (ahead != 0) + ahead
+    x_hat = x_bar + np.outer(theta_read - theta0, loop.L)
     e_th, e_w = x_hat[:, 0] - th_d, x_hat[:, 1] - w_d
     a = -(loop.K[1] * e_th + loop.K[2] * e_w)  # z = 0 and nothing pending at t = 0
     J = kinematics.jacobian(geometry, X_HOME)
@@ -212,10 +219,17 @@ def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geom
     M = J_inv.T @ statics.task_inertia(geometry, X_HOME) @ J_inv
     k_c = 2 * math.pi * 3.0
     v = w_l - k_c * e_th
-    want = T_ff + 0.2 * np.tanh(v / 2e-3) + 0.04 * w_l + M @ a
+    sense = (1 - share) * np.tanh(w_l / 2e-3) + share * np.tanh(v / 2e-3)
+    want = T_ff + 0.2 * sense + 0.04 * w_l + M @ a
+    assert np.max(np.abs(np.tanh(w_l / 2e-3) - np.tanh(v / 2e-3))) > 0.1  # the share shows
     _update(ctrl, context, x_d, theta_read, T_ff)
     T = ctrl.GetOutputPort("T").Eval(context)
     np.testing.assert_allclose(T, want, rtol=1e-9, atol=1e-10)
+    # the estimator predicts the next period with the command that acts in it: the pending one,
+    # zero at the start (d = 1), not a
+    x_bar_next = x_hat @ loop.Phi.T
+    state = context.get_discrete_state(0).get_value()
+    np.testing.assert_allclose(state[:18].reshape(6, 3), x_bar_next, rtol=1e-9, atol=1e-12)
     # the integral took the rectangle rule's step of the estimated angle error
     np.testing.assert_allclose(ctrl.GetOutputPort("integral").Eval(context), 0.01 * e_th, rtol=1e-9)
     # the pose error is J^-1 of the read error, at the start's inertia schedule

@@ -120,3 +120,22 @@ def test_a_payload_the_controller_does_not_know_is_held_by_the_integral():
     assert np.abs(early).max() > 3 * count[5]  # the payload did sag it
     e = result.x[result.t >= 4.0, :6] - result.x_d[result.t >= 4.0, :6]
     assert np.all(np.abs(e).max(axis=0) < 2 * count), np.abs(e).max(axis=0) / count
+
+
+def test_a_calibrated_robots_encoder_zeros_are_taken_off_its_readings():
+    """A robot whose encoders read +-5 mrad off each crank's zero, known to the controller (a
+    calibrated robot: its ``encoder_offsets_rad``) and built so in the plant, holding home: from
+    2 s on within two counts of home on every axis. Added instead of removed, the offsets would
+    turn the platform by tens of mrad (yaw -47.5 mrad at rest, as measured once such a bug)."""
+    from stewart_drake.references.trajectories import NamedReference
+
+    offsets = [5e-3, -5e-3, 5e-3, -5e-3, 5e-3, -5e-3]
+    scenario = _bus(duration_s=3.0, reference=NamedReference(name="home"))
+    scenario.robot.encoder_offsets_rad = offsets
+    scenario = _hardware(scenario)
+    result = run_experiment(scenario)
+    geometry = make_plan(scenario, with_reference=False).geometry
+    np.testing.assert_allclose(geometry.encoder_offsets, offsets)  # the robot the loop believes
+    count = _floor_from_the_jacobian(geometry) * np.sqrt(12)
+    e = result.x[result.t >= 2.0, :6] - result.x_d[result.t >= 2.0, :6]
+    assert np.all(np.abs(e).max(axis=0) < 2 * count), np.abs(e).max(axis=0) / count

@@ -213,6 +213,11 @@ def test_the_servo_refuses_eeprom_writes_with_torque_on_and_goals_over_the_limit
         assert error == p.ERR_ACCESS
         _, error = handler.write2ByteTxRx(port, 1, p.GOAL_CURRENT[0], 600)  # limit 557
         assert error == p.ERR_DATA_LIMIT
+        # either sign: -600 units (two's complement) is over the limit too, -557 is not
+        _, error = handler.write2ByteTxRx(port, 1, p.GOAL_CURRENT[0], -600 & 0xFFFF)
+        assert error == p.ERR_DATA_LIMIT
+        _, error = handler.write2ByteTxRx(port, 1, p.GOAL_CURRENT[0], -557 & 0xFFFF)
+        assert error == 0
         # The driver clips instead: the torque sent is the limit's.
         sent = bus.write_torques(np.full(6, 100.0))
         np.testing.assert_allclose(sent, 557 * 2.69e-3 * 4.1 / 2.3)
@@ -299,6 +304,10 @@ def test_the_bus_watchdog_removes_torque_when_commands_stop(emulator):
         # Read until the servos report the current (the model's next step): each read is an
         # instruction that restarts the watchdog, so none trips while the test waits.
         wait_for(lambda: np.all(bus.read_state().tau > 0), HANG_S, "the current driven")
+        # Each servo's trip is due 5 units of 20 ms after its last instruction: read from the
+        # emulator's own watch (its times, not the test's), where a wrong unit would show.
+        for expiry, servo in emulator._armed():
+            assert expiry - servo.last_instruction == pytest.approx(0.1, abs=1e-9)
         t_last = time.perf_counter()
         off = lambda: np.all(emulator.applied_current_A() == 0)  # noqa: E731
         wait_for(off, HANG_S, "the bus watchdog's trip", poll_s=0.005)

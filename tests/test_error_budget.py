@@ -118,3 +118,77 @@ def test_analyze_gives_the_servos_budget_at_the_command_line(tmp_path, capsys):
     record = json.loads((out / "budget.json").read_text())
     assert record["motion"] == "breathing" and len(record["total"]) == 6
     assert record["crank_servo_margins"][0].startswith("the crank servo's loop (f_c 2.5 Hz")
+
+
+def test_the_budget_table_reads_as_a_user_reads_it():
+    """A budget made by hand: the header names urad for the rotations and um for the
+    translations, each figure is a millionth of its SI value to 3 digits, the encoders' row is
+    theirs, and what dominates is the largest share, the period where it is the period."""
+    from stewart_drake.analysis.error_budget import ErrorBudget
+
+    rows = {name: np.zeros(6) for name in SOURCES}
+    rows["encoders"] = np.array([3e-4, 2e-4, 1e-4, 5e-5, 4e-5, 1e-5])
+    rows["period and delay"] = np.array([1e-4, 1e-4, 1e-4, 8e-5, 6e-5, 2e-5])
+    budget = ErrorBudget(
+        floor=np.full(6, 1.34e-4),
+        total=np.array([4e-4, 3e-4, 2e-4, 1.1e-4, 9e-5, 2.5e-5]),
+        encoder_pose=np.array([5e-4, 4e-4, 3e-4, 1.8e-4, 1.5e-4, 3e-5]),
+        rows=rows,
+        without={},
+        window_s=(2.0, 10.0),
+    )
+    lines = budget.lines()
+    assert lines[0] == (
+        "| | phi [urad] | theta [urad] | psi [urad] | X [um] | Y [um] | Z [um] | what lowers it |"
+    )
+    assert (
+        lines[2]
+        == "| **true pose**, every source (simulated) | 400 | 300 | 200 | 110 | 90 | 25 |  |"
+    )
+    assert lines[3] == (
+        f"| share of encoders | 300 | 200 | 100 | 50 | 40 | 10 | {SOURCES['encoders']} |"
+    )
+    assert lines[4] == (
+        f"| share of period and delay | 100 | 100 | 100 | 80 | 60 | 20 | "
+        f"{SOURCES['period and delay']} |"
+    )
+    assert (
+        "| encoders' floor (what they can know) | 134 | 134 | 134 | 134 | 134 | 134 |  |" in lines
+    )
+    assert (
+        "| **encoder pose** (what the robot reads) | 500 | 400 | 300 | 180 | 150 | 30 |  |" in lines
+    )
+    assert lines[-1] == "Dominant: period and delay in translation, encoders in rotation."
+
+
+def test_each_without_run_takes_away_its_source_and_only_it(monkeypatch):
+    """The simulations the budget runs, caught before they run: without the encoders, 2^30
+    counts; without the period and delay, 1 ms and none; without the current loop, no lag;
+    without friction, none in the servo and none believed; without the model, the payload the
+    controller believes; every other field as the full run's."""
+    from stewart_drake.analysis import error_budget as module
+
+    seen = {}
+
+    def fake(scenario, reference, skip):
+        seen[len(seen)] = scenario
+        return np.full(6, 1e-4), np.full(6, 2e-4), np.array([0, 0, 0, 0, 0, 0.3])
+
+    monkeypatch.setattr(module, "_errors", fake)
+    scenario = load_scenario("paper_bus", ["payload_scale=1.2"])
+    module.error_budget(scenario, "breathing", duration_s=4.0, skip_s=1.0)
+    full, encoders, period, current, friction, model = (seen[k] for k in range(6))
+    hw = full.hardware
+    assert (full.control_period_s, hw.computation_delay_periods) == (0.01, 1)
+    assert encoders.hardware.encoders.counts_per_rev == 2**30
+    assert (period.control_period_s, period.hardware.computation_delay_periods) == (1e-3, 0)
+    assert period.hardware.encoders == hw.encoders
+    assert (
+        current.hardware.motors.current_time_constant_s == 0.0 < hw.motors.current_time_constant_s
+    )
+    assert friction.hardware.motors.coulomb_friction_Nm == 0.0
+    assert friction.hardware.motors.viscous_damping == 0.0
+    assert friction.controller.friction_scale == 0.0 < full.controller.friction_scale
+    assert model.payload_scale == 1.0 and full.payload_scale == 1.2
+    for variant in (encoders, current, friction, model):
+        assert variant.control_period_s == 0.01

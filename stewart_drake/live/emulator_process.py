@@ -47,7 +47,7 @@ class _ChildArgs:
     baud_rate: int = 1_000_000
 
 
-def _serve(conn, args: _ChildArgs) -> None:  # pragma: no cover
+def _serve(conn, made: _ChildArgs) -> None:  # pragma: no cover
     """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
     ("port", the port), serves until told to stop, then sends the record. If it cannot start it
     sends ("error", one line) instead of a traceback on the terminal.
@@ -67,12 +67,12 @@ def _serve(conn, args: _ChildArgs) -> None:  # pragma: no cover
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), signal.SIG_IGN)
     try:
-        emu = _start(args)
+        emu = _start(made)
         # What start-up made (Drake, the plant, the modules) is never scanned again: a full
         # collection over it paused the servos' answers by 35 to 45 ms every few minutes.
         gc.collect()
         gc.freeze()
-        _start_threads(emu, args.realtime)
+        _start_threads(emu, made.realtime)
     except Exception as err:  # noqa: BLE001 - reported to the parent in one line
         conn.send(("error", f"{type(err).__name__}: {err}".splitlines()[0]))
         return
@@ -159,7 +159,7 @@ class RecordRows:
         return np.concatenate(self._blocks)[: self._n]
 
 
-def _start(args: _ChildArgs):  # pragma: no cover
+def _start(made: _ChildArgs):  # pragma: no cover
     """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant (with
     ``servos``, an :class:`~stewart_drake.station.bus.emulator_config.EmulatedServos` that
     departs from the controller's model, :class:`~.plant_backend.RealisticServos` and the bus's
@@ -171,9 +171,9 @@ def _start(args: _ChildArgs):  # pragma: no cover
     from ..station.bus.servo_models import FirstOrderServos, StackedServos
     from .plant_backend import RealisticServos, StationServos, dynamixel_scenario
 
-    ids, model, x0, servos = list(args.ids), args.model, args.x0, args.servos
-    zero_counts, surrogate = args.zero_counts, args.surrogate
-    scenario = dynamixel_scenario(model, _scenario_from_yaml(args.scenario_yaml))
+    ids, model, x0, servos = list(made.ids), made.model, made.x0, made.servos
+    zero_counts, surrogate = made.zero_counts, made.surrogate
+    scenario = dynamixel_scenario(model, _scenario_from_yaml(made.scenario_yaml))
     departs = servos is not None and servos.departs()
     base = RealisticServos if departs else StationServos
 
@@ -210,7 +210,7 @@ def _start(args: _ChildArgs):  # pragma: no cover
         or servos.crc_error_rate or servos.timeout_rate
     ):  # fmt: skip
         timing = BusTiming(
-            args.baud_rate,
+            made.baud_rate,
             servos.latency_timer_ms,
             servos.reply_jitter_us,
             servos.crc_error_rate,
@@ -222,8 +222,8 @@ def _start(args: _ChildArgs):  # pragma: no cover
         model,
         backend=backend,
         zero_counts=zero_counts,
-        tick_s=args.tick_s,
-        max_step_s=args.max_step_s,
+        tick_s=made.tick_s,
+        max_step_s=made.max_step_s,
         models=models,
         timing=timing,
         return_delay_us=0.0 if servos is None else servos.return_delay_us,
