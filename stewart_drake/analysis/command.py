@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..execution.options import (
     add_runner_arguments,
@@ -230,7 +231,7 @@ def _cmd_analyze(args) -> int:
             f"(controller: !LqiDriver); this scenario's controller is a "
             f"{type(scenario.controller).__name__}: its error budget instead"
         )
-        record = {"scenario": name}
+        record: dict[str, Any] = {"scenario": name}
         robust = _crank_servo_margins(scenario)
         if robust is not None:
             print("\n".join(robust))

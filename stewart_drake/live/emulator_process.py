@@ -168,7 +168,7 @@ def _start(made: _ChildArgs):  # pragma: no cover
     from ..run.scenario import _scenario_from_yaml
     from ..station.bus.bus_timing import BusTiming
     from ..station.bus.emulator import BusEmulator
-    from ..station.bus.servo_models import FirstOrderServos, StackedServos
+    from ..station.bus.servo_models import FirstOrderServos, ServoBackend, StackedServos
     from .plant_backend import RealisticServos, StationServos, dynamixel_scenario
 
     ids, model, x0, servos = list(made.ids), made.model, made.x0, made.servos
@@ -192,7 +192,8 @@ def _start(made: _ChildArgs):  # pragma: no cover
             super().advance(dt_s, current_A)
             self.record.add(time.perf_counter(), self._port.Eval(self._context))
 
-    backend, models = Recorded(), None
+    backend: ServoBackend = Recorded()
+    models = None
     if surrogate is not None:
         stage = FirstOrderServos.linear_stage(surrogate.stage)
         backend = StackedServos(backend, stage)
