@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import HANG_S, robot_bus_yaml, start_as_a_user
+from conftest import HANG_S, needs_extra, robot_bus_yaml, start_as_a_user
 
 from stewart_drake.base.compiled import kernel_versions, versions_added
 
@@ -69,6 +69,7 @@ def _first_run(tmp_path: Path, **env) -> tuple[int, str, str]:
 
 
 @pytest.mark.system
+@needs_extra("robot")
 def test_a_robot_run_compiles_and_loads_nothing_once_the_torque_is_on(tmp_path):
     """With numba's cache holding every version (the suite's runs wrote it), a new process
     still loads each version its periods need before the torque: the crank servo's step with
@@ -81,6 +82,7 @@ def test_a_robot_run_compiles_and_loads_nothing_once_the_torque_is_on(tmp_path):
 
 
 @pytest.mark.slow
+@needs_extra("robot")
 def test_a_first_run_with_an_empty_cache_compiles_everything_before_the_torque(tmp_path):
     """The first run on a new machine: numba's cache empty, every kernel compiled (a minute and
     more) before the torque goes on; the run ends as it should, naming none as late."""

@@ -108,7 +108,7 @@ def test_the_current_loop_lags_and_is_bounded_by_its_limit_and_the_supply(k):
 
 MASS, LENGTH, G = 0.49, 0.1, 9.80665
 J_PENDULUM = MASS * LENGTH**2
-XL330 = np.array([4096.0, 256.0, 885.0, 1.0, 1.75])
+XL330 = np.array([4096.0, 256.0, 885.0, 1.0, 1.75, sp.POSITION_MODE])
 
 
 def _swing(t, goal, enabled, q0, drive, f, kp=0.0, h=1e-3, k=sp):
@@ -124,7 +124,7 @@ def test_a_free_small_swing_has_the_pendulums_period_and_keeps_its_energy():
     g l)) (the small-angle correction, theta0^2 / 16, is 1.6e-4) and keeps its amplitude
     (semi-implicit Euler keeps a pendulum's energy within O(h))."""
     t = np.arange(0.0, 2.0, 1e-3)
-    drive = np.array([0.35, 2.8, 1e-12, 0.0])
+    drive = np.array([0.35, 2.8, 1e-12, 0.0, 0.0])
     q = _swing(t, np.zeros(t.size), np.zeros(t.size, bool), 0.05, drive, friction_vector({}))
     period = 2 * math.pi * math.sqrt(J_PENDULUM / (MASS * G * LENGTH))
     down = np.flatnonzero((q[:-1] > 0) & (q[1:] <= 0))  # crossings of zero, going down
@@ -137,7 +137,7 @@ def test_a_shaft_whose_friction_exceeds_gravity_stays_where_it_is():
     """At 0.2 rad the arm's weight pulls with m g l sin 0.2 = 0.0955 N m: a Coulomb budget of
     0.1 N m holds it exactly; 0.09 lets it go."""
     t = np.arange(0.0, 0.5, 1e-3)
-    drive = np.array([0.35, 2.8, 1e-12, 0.0])
+    drive = np.array([0.35, 2.8, 1e-12, 0.0, 0.0])
     off = np.zeros(t.size, bool)
     held = _swing(t, np.zeros(t.size), off, 0.2, drive, friction_vector({"coulomb_Nm": 0.1}))
     assert np.all(held == 0.2)
@@ -152,7 +152,7 @@ def test_the_firmware_loop_droops_under_gravity_as_its_stiffness_says():
     k, R, V = 0.35, 2.8, 7.4
     t = np.arange(0.0, 8.0, 1e-3)
     goal = np.full(t.size, 0.5)
-    drive = np.array([k, R, 0.002, 0.0])
+    drive = np.array([k, R, 0.002, 0.0, 0.0])
     f = friction_vector({"viscous_Nm_s_per_rad": 0.02})
     q = _swing(t, goal, np.ones(t.size, bool), 0.0, drive, f, kp=400.0)
     stiffness = k * V * (400 / 256) * (4096 / (2 * math.pi)) / (885 * R)
@@ -169,7 +169,7 @@ def test_the_compiled_rollout_is_its_source_to_the_bit():
     t = np.cumsum(rng.uniform(3e-3, 6e-3, 400))
     goal = np.sin(2 * t)
     enabled = t < 1.5
-    drive = np.array([0.35, 2.8, 0.002, 0.01])
+    drive = np.array([0.35, 2.8, 0.002, 0.01, 0.0])
     f = friction_vector({n: 0.01 for n in MODEL_CLASSES["m6"]})
     a = _swing(t, goal, enabled, 0.0, drive, f, kp=200.0)
     b = _swing(t, goal, enabled, 0.0, drive, f, kp=200.0, k=sp.reference)

@@ -83,17 +83,38 @@ BENCH_SERVOS = {
 
 
 def bench_servo(name: str) -> BenchServo:
-    """The bench's figures of servo ``name``.
+    """The bench's figures of servo ``name``: :data:`BENCH_SERVOS`'s, or, for a servo of the
+    bus with Current Control Mode (:data:`~stewart_drake.station.bus.servos.SERVO_SPECS`), its
+    bus table's and the motor catalogue's, for logs in Current Control Mode (its position loop's
+    gains are not known to the bench: the e-Manual's 128 and 885 are taken).
 
     Raises:
         InvalidConfigError: a servo the bench does not know (the known ones listed).
     """
-    if name not in BENCH_SERVOS:
+    from ..robot.motor_catalogue import catalogue_motor
+    from ..station.bus.servos import SERVO_SPECS
+
+    if name in BENCH_SERVOS:
+        return BENCH_SERVOS[name]
+    spec = SERVO_SPECS.get(name)
+    if spec is None or spec.current_unit_A is None:
+        known = [*BENCH_SERVOS, *(n for n, s in SERVO_SPECS.items() if s.current_unit_A)]
         raise InvalidConfigError(
-            f"--servo {name!r}: the bench knows {', '.join(BENCH_SERVOS)}; its firmware's gains "
+            f"--servo {name!r}: the bench knows {', '.join(known)}; its firmware's gains "
             "and limits are needed to simulate another"
         )
-    return BENCH_SERVOS[name]
+    servo = catalogue_motor(name).servo
+    return BenchServo(
+        name,
+        spec.counts_per_rev,
+        128.0,
+        885.0,
+        1.0,
+        spec.current_limit_max * spec.current_unit_A,
+        servo.peak_torque_Nm,
+        servo.no_load_speed_rad_s,
+        f"the bus's table ({spec.source}) and the motor catalogue (docs/motor_catalogue.md)",
+    )
 
 
 @dataclass(frozen=True)
@@ -107,6 +128,8 @@ class BenchModel:
         resistance_ohm: the winding's (and drive's) resistance.  armature_kg_m2: the rotor's
             inertia at the shaft.  q_offset_rad: the bench's zero error.
         friction: {name: value} of the model class's terms (the others zero).
+        current_time_constant_s: the current loop's lag (Current Control Mode; a log in the
+            servo's position mode drives the motor by PWM and does not show it), s.
     """
 
     servo: str
@@ -116,6 +139,7 @@ class BenchModel:
     armature_kg_m2: float
     q_offset_rad: float = 0.0
     friction: dict = field(default_factory=dict)
+    current_time_constant_s: float = 0.0
 
     def __post_init__(self):
         bench_servo(self.servo)
@@ -135,11 +159,20 @@ class BenchModel:
         for name, value in self.friction.items():
             if not (math.isfinite(value) and value >= 0):
                 raise InvalidConfigError(f"friction {name} must be >= 0, got {value!r}")
+        lag = self.current_time_constant_s
+        if not (math.isfinite(lag) and lag >= 0):
+            raise InvalidConfigError(f"current_time_constant_s must be >= 0, got {lag!r}")
 
     def drive_vector(self) -> np.ndarray:
-        """(4,) :data:`DRIVE_NAMES`."""
+        """(5,) :data:`DRIVE_NAMES` and the current loop's lag."""
         return np.array(
-            [self.k_Nm_per_A, self.resistance_ohm, self.armature_kg_m2, self.q_offset_rad]
+            [
+                self.k_Nm_per_A,
+                self.resistance_ohm,
+                self.armature_kg_m2,
+                self.q_offset_rad,
+                self.current_time_constant_s,
+            ]
         )
 
     def friction_vector(self) -> np.ndarray:
@@ -151,6 +184,7 @@ def log_arrays(log: BenchLog, servo: BenchServo) -> tuple:
     """The arrays :func:`~stewart_drake.station.bus.servo_physics.pendulum_rollout` takes for
     ``log`` on ``servo``: (t, goal, enabled, bench, servo constants)."""
     bench = np.array([log.inertia_kg_m2, log.gravity_Nm, log.supply_V, log.kp])
+    mode = physics.CURRENT_MODE if log.mode == "current" else physics.POSITION_MODE
     constants = np.array(
         [
             servo.counts_per_rev,
@@ -158,6 +192,7 @@ def log_arrays(log: BenchLog, servo: BenchServo) -> tuple:
             servo.pwm_full,
             servo.duty_max,
             servo.current_limit_A,
+            mode,
         ],
         dtype=float,
     )

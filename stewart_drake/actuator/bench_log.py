@@ -7,8 +7,10 @@ own bench run writes too (:func:`write_bench_log`): a JSON object with the pendu
 0 by default), the firmware's position P gain ``kp`` (the control table's value), the supply
 ``vin`` (V), the ``motor`` and ``trajectory`` names, and ``entries``: one object a sample with
 ``timestamp`` (s), ``goal_position`` and ``position`` (rad, the servo's encoder), ``torque_enable``
-(bool) and, when recorded, ``input_volts`` (V), ``speed``, ``load``, ``temp``. Nothing in a log
-is run or imported: it is numbers and names.
+(bool) and, when recorded, ``input_volts`` (V), ``speed``, ``load``, ``temp``. A log of the
+servo in Current Control Mode (our commissioning excitation, :mod:`.commissioning`) says
+``"mode": "current"`` and gives each entry's ``goal_current`` (A) instead of its goal position.
+Nothing in a log is run or imported: it is numbers and names.
 """
 
 from __future__ import annotations
@@ -45,7 +47,10 @@ class BenchLog:
         kp: the firmware's position P gain (raw, the control table's).
         supply_V: the servo's supply: the mean of ``input_volts`` where recorded, else ``vin``.
         motor, trajectory: the log's names.
-        t: (n,) s, strictly increasing.  goal, q: (n,) rad.  enabled: (n,) bool.
+        t: (n,) s, strictly increasing.  goal: (n,) the goal position, rad (``mode``
+            "position"), or current, A ("current").  q: (n,) rad.  enabled: (n,) bool.
+        mode: "position" (the servo's own position loop: BAM's logs) or "current" (Current
+            Control Mode: a commissioning excitation over the bus).
     """
 
     path: str
@@ -60,6 +65,7 @@ class BenchLog:
     goal: np.ndarray
     q: np.ndarray
     enabled: np.ndarray
+    mode: str = "position"
 
     @property
     def name(self) -> str:
@@ -112,7 +118,11 @@ def bench_log_from(data, path="") -> BenchLog:
         raise CorruptFileError(
             path, KIND, f"entries holds {n} samples, fewer than the {MIN_SAMPLES} a log needs"
         )
-    columns = {k: np.empty(len(entries)) for k in ("timestamp", "goal_position", "position")}
+    mode = data.get("mode", "position")
+    if mode not in ("position", "current"):
+        raise CorruptFileError(path, KIND, f"its mode is {mode!r:.40}, not position or current")
+    goal_key = "goal_current" if mode == "current" else "goal_position"
+    columns = {k: np.empty(len(entries)) for k in ("timestamp", goal_key, "position")}
     enabled = np.empty(len(entries), dtype=bool)
     volts = []
     for i, entry in enumerate(entries):
@@ -147,9 +157,10 @@ def bench_log_from(data, path="") -> BenchLog:
         str(data.get("motor", "")),
         str(data.get("trajectory", "")),
         t - t[0],
-        columns["goal_position"],
+        columns[goal_key],
         columns["position"],
         enabled,
+        mode,
     )
 
 
@@ -167,10 +178,11 @@ def read_bench_log(path) -> BenchLog:
 def write_bench_log(path, log: BenchLog) -> Path:
     """``log`` as a bench log file (the format :func:`read_bench_log` reads), written whole or
     not at all; returns the path."""
+    goal_key = "goal_current" if log.mode == "current" else "goal_position"
     entries = [
         {
             "timestamp": float(t),
-            "goal_position": float(g),
+            goal_key: float(g),
             "position": float(q),
             "torque_enable": bool(on),
             "input_volts": log.supply_V,
@@ -185,6 +197,7 @@ def write_bench_log(path, log: BenchLog) -> Path:
         "vin": log.supply_V,
         "motor": log.motor,
         "trajectory": log.trajectory,
+        "mode": log.mode,
         "entries": entries,
     }
     path = Path(path)

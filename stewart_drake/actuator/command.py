@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..execution.options import int_at_least
+from ..execution.options import int_at_least, positive_float
 
 
 def register(sub) -> None:
@@ -16,7 +16,9 @@ def register(sub) -> None:
         help="identify a servo's drive and friction from its bench logs, or replay a model "
         "against them (docs/servo_bench.md)",
     )
-    verbs = servo.add_subparsers(dest="servo_verb", metavar="{identify,replay}", required=True)
+    verbs = servo.add_subparsers(
+        dest="servo_verb", metavar="{identify,replay,excite}", required=True
+    )
     ident = verbs.add_parser(
         "identify",
         help="fit a servo's drive and friction to bench logs and write the model",
@@ -58,6 +60,45 @@ def register(sub) -> None:
         help="also draw each log's measured and replayed angle (default: no figure)",
     )
     rep.set_defaults(func=_cmd_replay, derived_inputs=_model_input)
+    _add_excite(verbs)
+
+
+def _add_excite(verbs) -> None:
+    """``servo excite``'s options."""
+    ex = verbs.add_parser(
+        "excite",
+        help="commission a servo on its bench over the bus: drive its current, log its angle",
+    )
+    ex.add_argument("--port", default=None, help="the servo's serial port (or --emulate)")
+    ex.add_argument("--id", type=int_at_least(0), default=1, help="the servo's id")
+    ex.add_argument("--baud-rate", type=int_at_least(9600), default=1_000_000, help="bps")
+    ex.add_argument(
+        "--servo",
+        default="XM430-W350-T",
+        help="its model, one of the bus's with Current Control Mode",
+    )
+    ex.add_argument("--mass", type=positive_float, required=True, help="kg at the arm's end")
+    ex.add_argument("--length", type=positive_float, required=True, help="the arm, m")
+    ex.add_argument("--supply", type=positive_float, default=12.0, help="the servo's supply, V")
+    ex.add_argument("--seconds", type=positive_float, default=8.0, help="of the excitation")
+    ex.add_argument(
+        "--amplitude",
+        type=positive_float,
+        default=1.0,
+        help="the current's amplitude as a share of the safe one (at most 1)",
+    )
+    ex.add_argument(
+        "--emulate",
+        type=int_at_least(0),
+        nargs="?",
+        const=0,
+        default=None,
+        metavar="SEED",
+        help="on the bus emulator: a servo as it is, drawn from SEED (default 0; its hidden "
+        "figures printed at the end, for identify to find), on the emulator's own clock",
+    )
+    ex.add_argument("--out", required=True, help="the bench log to write (JSON)")
+    ex.set_defaults(func=_cmd_excite, out_is_file=True)
 
 
 def _model_input(args) -> list:
@@ -82,13 +123,14 @@ def _table(model, logs, identified_on=()) -> tuple[list[str], list[dict]]:
     rows = []
     for log in logs:
         row = errors(replay(model, log), log)
-        row.update(log=log.name, kp=log.kp, seen=log.name in identified_on)
+        mode = f"kp {log.kp:g}" if log.mode == "position" else "current"
+        row.update(log=log.name, mode=mode, seen=log.name in identified_on)
         rows.append(row)
     width = max(len(r["log"]) for r in rows)
-    lines = [f"  {'log':<{width}}  {'kp':>5}  {'MAE':>7}  {'RMS':>7}  {'peak':>7} mrad"]
+    lines = [f"  {'log':<{width}}  {'goal':>8}  {'MAE':>7}  {'RMS':>7}  {'peak':>7} mrad"]
     for r in rows:
         lines.append(
-            f"  {r['log']:<{width}}  {r['kp']:>5g}  {1e3 * r['mae_rad']:>7.2f}  "
+            f"  {r['log']:<{width}}  {r['mode']:>8}  {1e3 * r['mae_rad']:>7.2f}  "
             f"{1e3 * r['rms_rad']:>7.2f}  {1e3 * r['peak_rad']:>7.1f}"
             + ("   (identified on it)" if r["seen"] else "")
         )
@@ -106,6 +148,25 @@ def _table(model, logs, identified_on=()) -> tuple[list[str], list[dict]]:
     return lines, rows
 
 
+def check_same_servo(log, servo: str) -> None:
+    """Refuse a log of another servo than ``servo`` (its ``motor``, as a bench names it:
+    "xl330" or the model's full name, compared without case and punctuation; a log naming no
+    motor is taken).
+
+    Raises:
+        InvalidConfigError: names the log, its motor and the servo.
+    """
+    from ..base.errors import InvalidConfigError
+
+    def plain(name: str) -> str:
+        return "".join(c for c in name.lower() if c.isalnum())
+
+    if log.motor and not plain(servo).startswith(plain(log.motor)):
+        raise InvalidConfigError(
+            f"{log.name} logs a {log.motor}, not a {servo}: give the logs of that servo"
+        )
+
+
 def _cmd_identify(args) -> int:
     """``servo identify``: the logs read and checked, the search, the table, the file."""
     from .bench import bench_servo
@@ -114,6 +175,8 @@ def _cmd_identify(args) -> int:
 
     bench_servo(args.servo)  # an unknown servo refused before the logs are read
     logs = _read_logs(args.bench_logs)
+    for log in logs:
+        check_same_servo(log, args.servo)
     print(
         f"stewart-drake servo: identifying {args.servo} ({args.model_class}) on {len(logs)} "
         f"logs, {args.generations} generations at most (a minute or more)",
@@ -143,8 +206,10 @@ def _cmd_identify(args) -> int:
         "friction " + ", ".join(f"{name} {value:.4g}" for name, value in m.friction.items())
     )
     lines, _ = _table(m, logs, found.logs)
-    print("replayed on the logs it was identified on (the servo's own loop closed on the "
-          "simulated shaft, the whole log):")  # fmt: skip
+    if m.current_time_constant_s:
+        print(f"  its current loop's lag {1e3 * m.current_time_constant_s:.3g} ms")
+    print("replayed on the logs it was identified on (the servo's firmware, its position loop "
+          "or its current loop, run on the simulated shaft over the whole log):")  # fmt: skip
     print("\n".join(lines))
     path = write_model(args.out, found, args.seed)
     print(f"wrote {path}")
@@ -157,10 +222,13 @@ def _cmd_replay(args) -> int:
 
     model, identified_on = read_model(args.servo_model)
     logs = _read_logs(args.bench_logs)
+    for log in logs:
+        check_same_servo(log, model.servo)
     lines, rows = _table(model, logs, identified_on)
     print(
         f"{model.servo} ({model.model_class}) from {model_path(args.servo_model)}, driven by "
-        "each log's goal positions, against the angles the log's encoder recorded:"
+        "each log's goals (positions in the servo's position mode, currents in Current Control "
+        "Mode), against the angles the log's encoder recorded:"
     )
     print("\n".join(lines))
     if args.plot:
@@ -169,3 +237,72 @@ def _cmd_replay(args) -> int:
         path = plot_replays(model, logs, rows, args.plot)
         print(f"wrote {path}")
     return 0
+
+
+def _cmd_excite(args) -> int:
+    """``servo excite``: the bench checked, the bus opened (or emulated), the excitation run
+    with the torque off at every end, the log written."""
+    import numpy as np
+
+    from ..base.errors import InvalidConfigError
+    from ..station.bus.servos import servo_spec
+    from .bench_log import write_bench_log
+    from .commissioning import Pendulum, excitation_current, excite, safe_amplitude_A
+
+    spec = servo_spec(args.servo)
+    if args.amplitude > 1.0:
+        raise InvalidConfigError(f"--amplitude {args.amplitude:g}: at most 1 (the safe one)")
+    if (args.port is None) == (args.emulate is None):
+        raise InvalidConfigError("give the servo's --port, or --emulate [SEED], one of them")
+    pendulum = Pendulum(args.mass, args.length, supply_V=args.supply)
+    period = 0.01
+    t = np.arange(0.0, args.seconds, period)
+    amplitude = args.amplitude * safe_amplitude_A(pendulum, spec.torque_constant_Nm_per_A)
+    currents = excitation_current(t, amplitude, args.seconds)
+    print(
+        f"stewart-drake servo: exciting {args.servo} id {args.id} for {args.seconds:g} s, "
+        f"currents within {amplitude:.3g} A, the arm {args.mass:g} kg at {args.length:g} m",
+        file=sys.stderr,
+        flush=True,
+    )
+    emulated = None
+    if args.emulate is not None:
+        from ..station.bus.emulator import BusEmulator
+        from ..station.bus.emulator_config import EmulatorConfig
+        from ..station.bus.servo_models import BenchServos
+
+        hidden = EmulatorConfig(seed=args.emulate).draw(spec, 1)
+        backend = BenchServos(hidden, args.mass, args.length)
+        emulated = BusEmulator([args.id], args.servo, backend=backend, command_step_s=period)
+        emulated.start()
+        port = emulated.port
+    else:
+        port = args.port
+    from ..station.bus.driver import DynamixelBus
+
+    try:
+        bus = DynamixelBus(port, args.baud_rate, [args.id], args.servo, reply_timeout_s=2.0)
+        log = excite(bus, pendulum, currents, period, commanded=emulated is not None)
+    finally:
+        if emulated is not None:
+            emulated.close()
+    path = write_bench_log(args.out, log)
+    print(f"logged {log.t[-1]:.2f} s, the arm within {np.abs(log.q).max():.3g} rad; wrote {path}")
+    if emulated is not None:
+        print(_hidden_line(hidden, backend))
+    return 0
+
+
+def _hidden_line(hidden, backend) -> str:
+    """What the emulated servo hid, as ``identify`` would name it."""
+    from ..station.bus.servo_physics import FRICTION
+
+    f = hidden.friction[0]
+    terms = ("coulomb_Nm", "stribeck_Nm", "stribeck_rad_s", "load_motor", "load_motor_stribeck")
+    return (
+        f"the emulated servo (seed {hidden.seed}) hid: k {hidden.k_Nm_per_A[0]:.4g} N m/A, R "
+        f"{hidden.resistance_ohm[0]:.4g} ohm, armature "
+        f"{backend.armature:.4g} kg m^2, current lag "
+        f"{1e3 * hidden.current_time_constant_s:.3g} ms; friction "
+        + ", ".join(f"{name} {f[FRICTION[name]]:.4g}" for name in terms)
+    )

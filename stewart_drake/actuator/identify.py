@@ -8,10 +8,11 @@ The search: scipy's differential evolution (a seeded, bounded global search; the
 smooth where the shaft sticks and slips, which rules out a gradient), over the motor's constant,
 the resistance, the rotor's inertia at the shaft, the bench's zero error and the class's friction
 terms (:data:`~stewart_drake.station.bus.servo_physics.MODEL_CLASSES`), each within
-:func:`bounds`. What the logs cannot tell apart stays unidentified: the P divisor and the torque
-constant scale together (:data:`~.bench.BENCH_SERVOS` gives the divisor), and a log in position
-mode drives the motor by its PWM, so the current loop's lag does not show in it (the servo's
-current loop is bypassed there).
+:func:`bounds`, and, where a log drove the servo in Current Control Mode, the current loop's lag.
+What the logs cannot tell apart stays unidentified: the P divisor and the torque constant scale
+together (:data:`~.bench.BENCH_SERVOS` gives the divisor); a log in position mode drives the
+motor by its PWM, so the current loop's lag does not show in it; and in Current Control Mode
+the winding's resistance shows only where the supply bounds the current (fast motion).
 """
 
 from __future__ import annotations
@@ -33,8 +34,11 @@ from .bench_log import BenchLog
 DRIVE_TERMS = ("k_Nm_per_A", "resistance_ohm", "armature_kg_m2", "q_offset_rad")
 
 
-def bounds(servo: BenchServo, model_class: str) -> dict[str, tuple[float, float]]:
-    """{term: (low, high)} of a search of ``model_class`` on ``servo``: the motor's constant
+def bounds(
+    servo: BenchServo, model_class: str, with_lag: bool = False
+) -> dict[str, tuple[float, float]]:
+    """{term: (low, high)} of a search of ``model_class`` on ``servo`` (``with_lag``: the
+    current loop's lag too, 0 to 10 ms, for logs in Current Control Mode): the motor's constant
     within a factor of 4 of the datasheet's stall torque over its current limit (either side),
     the resistance 0.3 to 20 ohm, the rotor 1e-5 to 0.05 kg m^2 at the shaft, the bench's zero
     within 0.1 rad; friction torques up to 40 % of the stall torque, the viscous term up to the
@@ -48,6 +52,7 @@ def bounds(servo: BenchServo, model_class: str) -> dict[str, tuple[float, float]
         "resistance_ohm": (0.3, 20.0),
         "armature_kg_m2": (1e-5, 0.05),
         "q_offset_rad": (-0.1, 0.1),
+        "current_time_constant_s": (0.0, 0.01),
         "coulomb_Nm": (0.0, torque),
         "viscous_Nm_s_per_rad": (0.0, servo.stall_torque_Nm / servo.no_load_speed_rad_s),
         "stribeck_Nm": (0.0, torque),
@@ -56,17 +61,22 @@ def bounds(servo: BenchServo, model_class: str) -> dict[str, tuple[float, float]
         "quad_motor_per_Nm": (0.0, 0.05),
         "quad_external_per_Nm": (0.0, 0.05),
     }
-    terms = DRIVE_TERMS + MODEL_CLASSES[model_class]
+    lag = ("current_time_constant_s",) if with_lag else ()
+    terms = DRIVE_TERMS + lag + MODEL_CLASSES[model_class]
     return {name: ranges.get(name, (0.0, 1.0)) for name in terms}
 
 
-def model_of(servo: str, model_class: str, x: Sequence[float]) -> BenchModel:
-    """The :class:`~.bench.BenchModel` of a search's vector ``x`` (:data:`DRIVE_TERMS`, then the
-    class's friction terms)."""
+def model_of(
+    servo: str, model_class: str, x: Sequence[float], with_lag: bool = False
+) -> BenchModel:
+    """The :class:`~.bench.BenchModel` of a search's vector ``x`` (:data:`DRIVE_TERMS`, the
+    current loop's lag ``with_lag``, then the class's friction terms)."""
     terms = MODEL_CLASSES[model_class]
     k, R, armature, offset = (float(v) for v in x[:4])
-    friction = {name: float(v) for name, v in zip(terms, x[4:])}
-    return BenchModel(servo, model_class, k, R, armature, offset, friction)
+    n = 5 if with_lag else 4
+    lag = float(x[4]) if with_lag else 0.0
+    friction = {name: float(v) for name, v in zip(terms, x[n:])}
+    return BenchModel(servo, model_class, k, R, armature, offset, friction, lag)
 
 
 @dataclass(frozen=True)
@@ -115,6 +125,8 @@ def identify(
     if not logs:
         raise InvalidConfigError("identify needs at least one bench log")
     generations = check_int("generations", generations, 1)
+    with_lag = any(log.mode == "current" for log in logs)
+    n = 5 if with_lag else 4
     arrays = [log_arrays(log, spec) for log in logs]
     measured = [log.q for log in logs]
     outs = [np.empty(log.t.size) for log in logs]
@@ -125,8 +137,9 @@ def identify(
 
     def objective(x) -> float:
         count[0] += 1
-        f[slots] = x[4:]
-        drive = np.asarray(x[:4], dtype=float)
+        f[slots] = x[n:]
+        drive = np.zeros(5)
+        drive[:n] = x[:n]
         total = 0.0
         for (t, goal, enabled, bench, constants), q, out in zip(arrays, measured, outs):
             out[0] = q[0]
@@ -141,7 +154,7 @@ def identify(
             progress(callback.generation, objective(xk))  # type: ignore[attr-defined]
 
     callback.generation = 0  # type: ignore[attr-defined]
-    ranges = list(bounds(spec, model_class).values())
+    ranges = list(bounds(spec, model_class, with_lag).values())
     result = differential_evolution(
         objective,
         ranges,
@@ -155,5 +168,5 @@ def identify(
         init="sobol",
         callback=callback,
     )
-    model = model_of(servo, model_class, result.x)
+    model = model_of(servo, model_class, result.x, with_lag)
     return Identified(model, float(result.fun), count[0], tuple(log.name for log in logs))

@@ -53,6 +53,7 @@ def write_model(path, identified: Identified, seed: int) -> Path:
         "resistance_ohm": m.resistance_ohm,
         "armature_kg_m2": m.armature_kg_m2,
         "q_offset_rad": m.q_offset_rad,
+        "current_time_constant_s": m.current_time_constant_s,
         "friction": dict(m.friction),
         "identified_on": list(identified.logs),
         "mae_rad": identified.mae_rad,
@@ -84,6 +85,9 @@ def read_model(path) -> tuple[BenchModel, tuple[str, ...]]:
     numbers = {}
     for key in ("k_Nm_per_A", "resistance_ohm", "armature_kg_m2", "q_offset_rad"):
         numbers[key] = _number(path, key, data.get(key))
+    numbers["current_time_constant_s"] = _number(
+        path, "current_time_constant_s", data.get("current_time_constant_s", 0.0)
+    )
     friction = data.get("friction")
     if not isinstance(friction, dict):
         raise CorruptFileError(path, KIND, "its friction is not an object of terms", REMEDY)

@@ -1,8 +1,9 @@
 """The motion behind an emulated bus's servos (:mod:`.emulator`): a :class:`ServoBackend` the
 emulator steps towards the wall clock; :class:`FirstOrderServos`, one rigid crank per servo,
 ``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed (12 V:
-the stall current falling linearly to zero at the no-load speed), or a linear stage; and
-:class:`StackedServos`, several backends on one bus."""
+the stall current falling linearly to zero at the no-load speed), or a linear stage;
+:class:`BenchServos`, servos as they are (:mod:`.servo_physics`) each on a pendulum, for
+commissioning; and :class:`StackedServos`, several backends on one bus."""
 
 from __future__ import annotations
 
@@ -131,6 +132,74 @@ class FirstOrderServos(ServoBackend):
         return self._v.copy()
 
 
+class BenchServos(ServoBackend):
+    """Servos each on a pendulum of its own, as a bench holds them for commissioning
+    (:mod:`stewart_drake.actuator.commissioning`), their drive and friction ``servos``'s
+    (:class:`~.emulator_config.EmulatedServos`: what a real one hides) run by
+    :mod:`.servo_physics`: each servo's current follows its Goal Current through its current
+    loop, within what its supply drives against the back-EMF; ``J q'' = k i - G sin(q + q_offset)
+    + friction``, J the pendulum's ``m l^2`` and the rotor's reflected inertia (the catalogue's
+    times ``servos.rotor_inertia_scale``), the friction the budget (the load the pendulum's
+    gravity) as a stopping torque, semi-implicit Euler at :data:`STEP_S`.
+
+    Args:
+        servos: the drawn servos (n of them).  mass_kg, length_m: each pendulum's point mass
+            and arm.  q0: (n,) the shafts' angles at rest, rad.  q_offset_rad: (n,) the
+            bench's zero errors (the arm hangs down at -q_offset).
+    """
+
+    STEP_S = 5e-4
+
+    def __init__(self, servos, mass_kg: float, length_m: float, q0=None, q_offset_rad=None):
+        from .servo_physics import warm_up
+
+        warm_up()
+        n = len(servos.k_Nm_per_A)
+        self.servos = servos
+        #: The rotor's inertia at the shaft, kg m^2 (what a bench identifies as its armature).
+        self.armature = catalogue_motor(servos.model).servo.reflected_inertia
+        self.armature *= servos.rotor_inertia_scale
+        self.inertia = mass_kg * length_m**2 + self.armature
+        self.gravity_Nm = mass_kg * 9.80665 * length_m
+        self.q_offset = np.zeros(n) if q_offset_rad is None else np.asarray(q_offset_rad, float)
+        self._q = np.zeros(n) if q0 is None else np.array(q0, dtype=float)
+        self._v = np.zeros(n)
+        self._i = np.zeros(n)
+
+    def advance(self, dt_s, current_A):
+        from .servo_physics import current_step, friction_budget, stopping_friction
+
+        s = self.servos
+        n_steps = max(1, math.ceil(dt_s / self.STEP_S))
+        h = dt_s / n_steps
+        target = np.asarray(current_A, dtype=float).tolist()
+        q, v, i = self._q.tolist(), self._v.tolist(), self._i.tolist()
+        for k, goal in enumerate(target):
+            for _ in range(n_steps):
+                i[k] = current_step(
+                    i[k], goal, h, s.current_time_constant_s, v[k], s.supply_V,
+                    s.k_Nm_per_A[k], s.resistance_ohm[k], s.current_limit_A,
+                )  # fmt: skip
+                tau_m = s.k_Nm_per_A[k] * i[k]
+                tau_e = -self.gravity_Nm * math.sin(q[k] + self.q_offset[k])
+                net = tau_m + tau_e
+                budget = friction_budget(s.friction[k], v[k], tau_m, tau_e)
+                net += stopping_friction(self.inertia, h, v[k], net, budget)
+                v[k] += h * net / self.inertia
+                q[k] += h * v[k]
+        self._q, self._v, self._i = np.array(q), np.array(v), np.array(i)
+
+    def currents_A(self) -> np.ndarray:
+        """(n,) the currents the servos drive now, A (Present Current)."""
+        return self._i.copy()
+
+    def positions_rad(self):
+        return self._q.copy()
+
+    def velocities_rad_s(self):
+        return self._v.copy()
+
+
 class StackedServos(ServoBackend):
     """Several backends behind one bus, their servos in order: the robot's six cranks, then a
     surrogate's stage (:meth:`FirstOrderServos.linear_stage`), say. Each part is advanced with
@@ -157,5 +226,6 @@ class StackedServos(ServoBackend):
 __all__ = [
     "ServoBackend",
     "FirstOrderServos",
+    "BenchServos",
     "StackedServos",
 ]

@@ -161,25 +161,35 @@ def current_step(i, target_A, h, time_constant_s, v, supply_V, k, R, current_lim
     return min(max(i, lo), hi)
 
 
+#: The firmware modes a bench rollout runs: the servo's own position loop (its PWM from the P
+#: term), or its current loop following a Goal Current (Current Control Mode).
+POSITION_MODE, CURRENT_MODE = 3.0, 0.0
+
+
 @_njit
 def pendulum_rollout(t, goal, enabled, bench, servo, drive, f, h, q_out):
-    """A servo in its own position mode swinging a pendulum (a bench, :mod:`stewart_drake.
-    actuator.bench`): the shaft's angle at each time ``t`` (n,) into ``q_out`` (n,), from
-    ``q_out[0]`` at rest. ``J q'' = tau_m + tau_e + tau_f``: the pendulum's inertia plus the
-    rotor's, gravity ``-G sin(q + q_offset)``, the motor's torque from the firmware's duty
-    (:func:`position_duty`, bounded by :func:`limited_duty`), the friction the stopping torque
-    clipped to the budget; semi-implicit Euler at ``h``, landing on every time of ``t``.
+    """A servo swinging a pendulum (a bench, :mod:`stewart_drake.actuator.bench`): the shaft's
+    angle at each time ``t`` (n,) into ``q_out`` (n,), from ``q_out[0]`` at rest. ``J q'' =
+    tau_m + tau_e + tau_f``: the pendulum's inertia plus the rotor's, gravity ``-G sin(q +
+    q_offset)``, the motor's torque ``k i``, the friction the stopping torque clipped to the
+    budget; semi-implicit Euler at ``h``, landing on every time of ``t``. In the servo's own
+    position mode the current is the firmware's duty's (:func:`position_duty`, bounded by
+    :func:`limited_duty`) through the winding; in Current Control Mode the current follows the
+    goal through the current loop (:func:`current_step`).
 
     Args:
-        goal (n,) rad, enabled (n,) bool: the goal position (linear between samples) and the
-            torque's state.  bench: (4,) [pendulum inertia kg m^2, G N m, supply V, kp].
-            servo: (5,) [counts a turn, P divisor, PWM units of 100 %, largest duty, current
-            limit A].  drive: (4,) [k N m/A, R ohm, armature kg m^2, q_offset rad].  f: the
-            friction vector.  h: the step, s.
+        goal (n,): the goal position, rad, linear between samples, or the Goal Current, A, each
+            held until the next (by the mode).
+        enabled (n,) bool: the torque's state.  bench: (4,) [pendulum inertia kg m^2, G N m,
+            supply V, kp].  servo: (6,) [counts a turn, P divisor, PWM units of 100 %,
+            largest duty, current limit A, mode (:data:`POSITION_MODE`, :data:`CURRENT_MODE`)].
+            drive: (5,) [k N m/A, R ohm, armature kg m^2, q_offset rad, current lag s].
+            f: the friction vector.  h: the step, s.
     """
-    k, R, armature, offset = drive[0], drive[1], drive[2], drive[3]
+    k, R, armature, offset, lag = drive[0], drive[1], drive[2], drive[3], drive[4]
     inertia = bench[0] + armature
-    q, v = q_out[0], 0.0
+    current_mode = servo[5] == CURRENT_MODE
+    q, v, i = q_out[0], 0.0, 0.0
     now = t[0]
     seg = 0
     n = t.size
@@ -187,11 +197,19 @@ def pendulum_rollout(t, goal, enabled, bench, servo, drive, f, h, q_out):
         while now < t[j] - 1e-12:
             while seg + 2 < n and t[seg + 1] <= now:
                 seg += 1
-            a = min(max((now - t[seg]) / (t[seg + 1] - t[seg]), 0.0), 1.0)
-            g = goal[seg] + a * (goal[seg + 1] - goal[seg])
+            if current_mode:  # each Goal Current held until the next is written
+                g = goal[seg]
+            else:  # a goal position's trajectory, sampled
+                a = min(max((now - t[seg]) / (t[seg + 1] - t[seg]), 0.0), 1.0)
+                g = goal[seg] + a * (goal[seg + 1] - goal[seg])
             step = min(h, t[j] - now)
             tau_m = 0.0
-            if enabled[seg]:
+            if not enabled[seg]:
+                i = 0.0
+            elif current_mode:
+                i = current_step(i, g, step, lag, v, bench[2], k, R, servo[4])
+                tau_m = k * i
+            else:
                 duty = position_duty(g, q, bench[3], servo[0], servo[1], servo[2])
                 duty = limited_duty(duty, v, bench[2], k, R, servo[4], servo[3])
                 tau_m = k * pwm_current(duty, v, bench[2], k, R)
@@ -218,7 +236,7 @@ def warm_up() -> None:
     t, q = np.linspace(0.0, 0.01, 3), np.zeros(3)
     f = friction_vector({})
     pendulum_rollout(
-        t, np.zeros(3), np.ones(3, bool), np.ones(4), np.ones(5), np.ones(4), f, 1e-3, q
+        t, np.zeros(3), np.ones(3, bool), np.ones(4), np.ones(6), np.ones(5), f, 1e-3, q
     )
 
 
