@@ -1,29 +1,31 @@
-"""The servo's own position loop, as a DYNAMIXEL-P's firmware runs it in Position Control Mode:
-a cascade of a position P term, a velocity PI loop and the current loop (the e-Manual's control
-block diagram of the PH42/PM42 series: Position P Gain, Velocity P and I Gains), each period of
-the firmware's own loop, on its own encoder, with no bus between the measurement and the current.
+"""The servo's own position loop, as a DYNAMIXEL's firmware runs it in Position Control Mode:
+the goal turned into a desired trajectory by the profile, then a PID on the position error with
+a velocity feed-forward, whose output is the motor's PWM (the e-Manual's position controller,
+the same structure in the X series and the DYNAMIXEL-P: Position P, I, D Gains, Feedforward 1st
+Gain, Profile Velocity, Goal PWM; the velocity PI gains belong to Velocity Control Mode). It
+runs each period of the firmware's own loop on its own encoder, with no bus between the
+measurement and the motor.
 
-Per servo, each firmware period ``h``, on the encoder's whole counts (the goal rounded as the
-control table holds it)::
+Per servo, each firmware period ``h``, on the encoder's whole counts::
 
-    v_cmd = K_pp (goal - read) + v_ff
+    p_d  moves towards the goal at the profile velocity v_p (reaching it, stops): v_d its rate
     v_hat += (1 - exp(-h / T_v)) ((read - read_prev) / h - v_hat)
-    i     = K_vp (v_cmd - v_hat) + I + i_ff,     I += K_vi (v_cmd - v_hat) h
+    u    = K_P e + I + K_D (v_d - v_hat) + K_FF v_d,    e = p_d - read,    I += K_I e h
 
-``i`` within the current limit; the integral ``I`` stops growing in the sense that saturates
-(conditional integration: the anti-windup). ``v_ff`` and ``i_ff`` are the velocity and current
-feed-forward a host streams with the goal (the P series' Goal Velocity and Goal Current as
-feed-forward: what a controller streaming goal positions sends). The integral holds what the
-model does not: the gears' load-dependent friction (a band of positions where a P loop sticks),
-a motor constant off the catalogue's, a payload. The current that results is what the servo's
-current loop follows (:func:`~.servo_physics.current_step`).
+``u`` is a voltage (the duty ``u / V`` within ``[-1, 1]``: the PWM Limit); the integral stops
+growing in the sense that saturates (the e-Manual's anti-windup, whose gain it does not give).
+A host streams each goal with the profile velocity that reaches it in one control period
+(Profile Velocity and Goal Position are contiguous in both tables, one sync write): the
+trajectory then interpolates the goals linearly, a period behind them, and the feed-forward acts
+on their slope. The motor's current is what the duty drives against the back-EMF
+(:func:`~.servo_physics.pwm_current`, within the current limit where the supply allows:
+:func:`~.servo_physics.limited_duty`).
 
-What is ours, not ROBOTIS's: the gains are given in SI (A per rad/s, 1/s), not in the control
-table's raw units, whose scaling the e-Manual does not give (the bench identifies them:
-docs/servo_bench.md); the loop's period and the velocity filter are not published either
-(:class:`CascadeGains`' defaults are assumptions, said where they are used). The X series' own
-position loop is another (a PID whose output is the PWM, or the current in Current-based
-Position Control Mode) and is not this module's.
+What is ours, not ROBOTIS's: the gains are given in SI (V per rad, V per rad s, V s per rad),
+not in the control table's raw units, whose scaling the e-Manual gives for the X series only
+(``K_PP = P / 128`` and so on, in PWM units) and the bench identifies (docs/servo_bench.md); the
+loop's period and the velocity estimate's filter are not published (:func:`position_gains`'
+defaults are assumptions, said where they are used).
 """
 
 from __future__ import annotations
@@ -37,112 +39,140 @@ from ...base.checks import as_number
 
 
 @dataclass(frozen=True)
-class CascadeGains:
-    """The cascade's gains, SI.
+class PositionGains:
+    """The position controller's gains and the firmware's figures, SI.
 
     Attributes:
-        position_per_s: ``K_pp``, the velocity commanded per radian of position error, 1/s.
-        velocity_A_s_per_rad: ``K_vp``, A per rad/s of velocity error.
-        velocity_integral_A_per_rad: ``K_vi``, A per rad/s of velocity error per second.
-        velocity_filter_s: ``T_v``, the velocity estimate's first-order filter, s.
+        p_V_per_rad: ``K_P``.  i_V_per_rad_s: ``K_I``.  d_V_s_per_rad: ``K_D``.
+        ff_V_s_per_rad: ``K_FF``, on the desired velocity (the back-EMF constant cancels it).
+        supply_V: the supply the duty is a share of.  velocity_filter_s: ``T_v``, s.
         period_s: the firmware loop's period ``h``, s.
-        current_limit_A: the current's bound, A.
     Raises:
-        InvalidConfigError: a gain negative or not finite, a period or limit not positive.
+        InvalidConfigError: a gain negative or not finite, a period or supply not positive.
     """
 
-    position_per_s: float
-    velocity_A_s_per_rad: float
-    velocity_integral_A_per_rad: float
-    velocity_filter_s: float
-    period_s: float
-    current_limit_A: float
+    p_V_per_rad: float
+    i_V_per_rad_s: float
+    d_V_s_per_rad: float
+    ff_V_s_per_rad: float
+    supply_V: float
+    velocity_filter_s: float = 2e-3
+    period_s: float = 1e-3
 
     def __post_init__(self):
-        for name in ("position_per_s", "velocity_A_s_per_rad", "velocity_integral_A_per_rad"):
+        for name in ("p_V_per_rad", "i_V_per_rad_s", "d_V_s_per_rad", "ff_V_s_per_rad"):
             as_number(name, getattr(self, name), 0.0, math.inf)
+        as_number("supply_V", self.supply_V, 0.0, 1e3, lo_open=True)
         as_number("velocity_filter_s", self.velocity_filter_s, 0.0, 1.0)
         as_number("period_s", self.period_s, 0.0, 0.1, lo_open=True)
-        as_number("current_limit_A", self.current_limit_A, 0.0, 1e3, lo_open=True)
 
 
-def cascade_gains(
+def position_gains(
     inertia_kg_m2: float,
     k_Nm_per_A: float,
-    current_limit_A: float,
-    velocity_hz: float = 60.0,
-    position_hz: float = 8.0,
+    resistance_ohm: float,
+    supply_V: float,
+    position_hz: float,
+    damping: float = 1.0,
+    integral_ratio: float = 4.0,
     period_s: float = 1e-3,
     velocity_filter_s: float = 2e-3,
-) -> CascadeGains:
-    """Gains that put the velocity loop's crossover at ``velocity_hz`` on a shaft of
-    ``inertia_kg_m2`` (the rotor reflected through the gears and the crank's share of the
-    platform) driven at ``k_Nm_per_A``, its integral's corner a quarter of it, and the position
-    loop's at ``position_hz`` (well inside: a cascade's outer loop is slower than its inner):
-    ``K_vp = 2 pi f_v J / k``, ``K_vi = K_vp 2 pi f_v / 4``, ``K_pp = 2 pi f_p``.
+) -> PositionGains:
+    """Gains that make the loop on a shaft of ``inertia_kg_m2`` (the rotor reflected through the
+    gears and the crank's share of the platform), driven by a motor of ``k_Nm_per_A`` and
+    ``resistance_ohm``, a second-order system of ``position_hz`` and ``damping``: a voltage
+    ``u`` gives the torque ``k (u - k v) / R``, so the stiffness ``J w^2`` needs ``K_P = J w^2 R
+    / k``, and the damping ``2 zeta w J`` what the back-EMF's ``k^2 / R`` leaves, ``K_D = (2 zeta
+    w J - k^2 / R) R / k`` (none if the back-EMF is enough); the integral's corner ``w /
+    integral_ratio``: ``K_I = K_P w / integral_ratio``; ``K_FF = k``, the back-EMF of the
+    desired velocity.
 
-    The defaults, 60 Hz and 8 Hz at 1 kHz with a 2 ms velocity filter, are ours (a DYNAMIXEL-P's
-    loop period is not published): measured on the realistic emulator's robot in
-    ``benchmarks/servo_position_loop.py``.
+    The loop's period (1 ms) and the velocity filter (2 ms) are ours: ROBOTIS does not publish
+    them (measured on the realistic emulator's robot in ``benchmarks/servo_position_loop.py``).
 
     Raises:
-        InvalidConfigError: a figure not positive, or a velocity loop not above the position's.
+        InvalidConfigError: a figure not positive, or a loop within 4 periods of the firmware's.
     """
     as_number("inertia_kg_m2", inertia_kg_m2, 0.0, math.inf, lo_open=True)
     as_number("k_Nm_per_A", k_Nm_per_A, 0.0, math.inf, lo_open=True)
-    as_number("position_hz", position_hz, 0.0, math.inf, lo_open=True)
-    as_number("velocity_hz", velocity_hz, position_hz, 0.25 / period_s, lo_open=True)
-    w_v = 2 * math.pi * velocity_hz
-    k_vp = w_v * inertia_kg_m2 / k_Nm_per_A
-    return CascadeGains(
-        position_per_s=2 * math.pi * position_hz,
-        velocity_A_s_per_rad=k_vp,
-        velocity_integral_A_per_rad=k_vp * w_v / 4.0,
+    as_number("resistance_ohm", resistance_ohm, 0.0, math.inf, lo_open=True)
+    as_number("position_hz", position_hz, 0.0, 0.25 / period_s / (2 * math.pi), lo_open=True)
+    as_number("damping", damping, 0.0, 10.0, lo_open=True)
+    as_number("integral_ratio", integral_ratio, 1.0, math.inf)
+    w = 2 * math.pi * position_hz
+    j, k, r = inertia_kg_m2, k_Nm_per_A, resistance_ohm
+    k_p = j * w * w * r / k
+    return PositionGains(
+        p_V_per_rad=k_p,
+        i_V_per_rad_s=k_p * w / integral_ratio,
+        d_V_s_per_rad=max(0.0, 2 * damping * w * j - k * k / r) * r / k,
+        ff_V_s_per_rad=k,
+        supply_V=supply_V,
         velocity_filter_s=velocity_filter_s,
         period_s=period_s,
-        current_limit_A=current_limit_A,
     )
 
 
-class CascadeFirmware:
-    """``n`` servos' cascades (module docstring), one :meth:`current` a firmware period.
+class PositionFirmware:
+    """``n`` servos' position controllers (module docstring): :meth:`set_goal` as a write of
+    Profile Velocity and Goal Position, :meth:`duty` once a firmware period.
 
     Args:
-        gains: the cascade's gains (one set for all).  rad_per_count: the encoder's count, rad.
-        read_rad: (n,) the encoders' readings when the torque goes on, rad (the velocity
-            estimate starts from them at rest).
+        gains: the gains (one set for all).  rad_per_count: the encoder's count, rad.
+        read_rad: (n,) the encoders' readings when the torque goes on, rad: the trajectory and
+            the goal start there, at rest.
     """
 
-    def __init__(self, gains: CascadeGains, rad_per_count: float, read_rad):
+    def __init__(self, gains: PositionGains, rad_per_count: float, read_rad):
         self.gains = gains
         self.count = float(rad_per_count)
-        self._prev = self._counts(read_rad)
-        self.v_hat = np.zeros_like(self._prev)
-        #: (n,) the velocity loop's integral, A.
-        self.integral = np.zeros_like(self._prev)
+        start = self._counts(read_rad)
+        self._prev = start.copy()
+        #: (n,) the desired trajectory, counts (Position Trajectory), and its goal.
+        self.trajectory = start.copy()
+        self.goal = start.copy()
+        self._profile = np.zeros_like(start)  # counts a period
+        self.v_hat = np.zeros_like(start)
+        #: (n,) the position loop's integral, V.
+        self.integral = np.zeros_like(start)
 
     def _counts(self, rad) -> np.ndarray:
         return np.rint(np.asarray(rad, dtype=float) / self.count)
 
-    def current(self, goal_rad, read_rad, velocity_ff=0.0, current_ff=0.0) -> np.ndarray:
-        """(n,) the current the cascade commands this period, A, from the goal and the
-        encoder's reading (rad, each rounded to whole counts) and the feed-forward (rad/s, A)."""
+    def set_goal(self, goal_rad, profile_velocity_rad_s=None) -> None:
+        """A new Goal Position (rad, (n,), held in whole counts) and Profile Velocity (rad/s,
+        (n,); None: none, the trajectory jumps to the goal, with no velocity to feed forward)."""
+        self.goal = self._counts(goal_rad)
+        if profile_velocity_rad_s is None:
+            self._profile = np.full_like(self.goal, np.inf)
+        else:
+            v = np.abs(np.asarray(profile_velocity_rad_s, dtype=float))
+            self._profile = v * self.gains.period_s / self.count
+
+    def duty(self, read_rad) -> np.ndarray:
+        """(n,) the PWM duty this period, in [-1, 1], from the encoder's reading (rad, rounded
+        to whole counts)."""
         g = self.gains
         h = g.period_s
+        step = np.clip(self.goal - self.trajectory, -self._profile, self._profile)
+        self.trajectory = self.trajectory + step
+        v_d = np.where(np.isinf(self._profile), 0.0, step * self.count / h)  # a jump: none
         read = self._counts(read_rad)
         rate = (read - self._prev) * self.count / h
         self._prev = read
         a = 1.0 - math.exp(-h / g.velocity_filter_s) if g.velocity_filter_s > 0 else 1.0
         self.v_hat = self.v_hat + a * (rate - self.v_hat)
-        error = (self._counts(goal_rad) - read) * self.count
-        v_error = g.position_per_s * error + velocity_ff - self.v_hat
-        i = g.velocity_A_s_per_rad * v_error + self.integral + current_ff
-        limit = g.current_limit_A
-        # conditional integration: the integral does not grow in the sense that saturates
-        grow = g.velocity_integral_A_per_rad * v_error * h
-        held = ((i >= limit) & (grow > 0)) | ((i <= -limit) & (grow < 0))
+        e = (self.trajectory - read) * self.count
+        u = (
+            g.p_V_per_rad * e
+            + self.integral
+            + g.d_V_s_per_rad * (v_d - self.v_hat)
+            + g.ff_V_s_per_rad * v_d
+        )
+        grow = g.i_V_per_rad_s * e * h
+        held = ((u >= g.supply_V) & (grow > 0)) | ((u <= -g.supply_V) & (grow < 0))
         self.integral = self.integral + np.where(held, 0.0, grow)
-        return np.clip(i, -limit, limit)
+        return np.clip(u / g.supply_V, -1.0, 1.0)
 
 
-__all__ = ["CascadeGains", "cascade_gains", "CascadeFirmware"]
+__all__ = ["PositionGains", "position_gains", "PositionFirmware"]
