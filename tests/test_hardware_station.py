@@ -127,6 +127,8 @@ def test_a_bus_scenario_derives_the_robot_built_with_its_servos_and_round_trips(
         (dict(bus=DynamixelBusConfig(watchdog_s=0.03)), "bus.watchdog_s"),
         (dict(bus=DynamixelBusConfig(directions=[1, 1, 1, 1, 1, 0])), "bus.directions"),
         (dict(bus=DynamixelBusConfig(max_deadline_misses=-1)), "bus.max_deadline_misses"),
+        (dict(bus=DynamixelBusConfig(read_retries=11)), "bus.read_retries"),
+        (dict(bus=DynamixelBusConfig(read_retries=-1)), "bus.read_retries"),
         (
             dict(
                 plant=MultibodyPlantConfig(time_step=5e-4, discrete_contact_approximation="sap"),
@@ -563,3 +565,17 @@ def test_each_period_records_the_loops_cpu_time_and_a_late_one_its_cause():
     assert "by cause: " in driver.miss_line() and "bus reply" in driver.miss_line()
     assert summary["late_causes"]["bus reply"] >= 1
     assert sum(summary["late_causes"].values()) == late.sum()
+
+
+def test_the_reads_sent_again_are_said_by_cause_in_the_timing():
+    """A bus whose reads were sent again (two corrupt replies, one lost) says so in the loop's
+    timing, by cause; one that needed none says nothing of it."""
+    bus = StallingBus(X_HOME, stalls=(), stall_s=0.0)
+    driver, simulator = _held_driver(bus, X_HOME, H, max_deadline_misses=10**6)
+    simulator.AdvanceTo(3 * H)
+    assert not [line for line in driver.timing_lines() if "sent again" in line]
+    bus.reads_retried = {"corrupt": 2, "lost": 1}
+    said = [line for line in driver.timing_lines() if "sent again" in line]
+    assert said == [
+        "reads sent again: 3 (2 corrupt replies, 1 lost reply), each period's reading the retry's"
+    ]

@@ -209,7 +209,9 @@ def _read_time(bus) -> float:
     "fate, words",
     [("crc_error_rate", "incorrect status packet"), ("timeout_rate", "no status packet")],
 )
-def test_a_corrupt_or_lost_reply_ends_the_read_with_a_bus_error(fate, words):
+def test_a_read_whose_retries_fail_too_ends_with_a_bus_error(fate, words):
+    """Every status packet corrupt, or lost: the read and its one retry fail, and the error
+    names what and how often it was sent."""
     from stewart_drake.station.bus.emulator import BusEmulator
 
     timing = BusTiming(1_000_000, 0.0, 0.0, **{fate: 1.0})
@@ -221,7 +223,45 @@ def test_a_corrupt_or_lost_reply_ends_the_read_with_a_bus_error(fate, words):
         with pytest.raises(BusError) as err:
             bus.read_state()
         bus.close()
-    assert "sync read" in str(err.value) and words in str(err.value).lower()
+    said = str(err.value)
+    assert "sync read" in said and words in said.lower() and "(sent 2 times)" in said
+    assert bus.reads_retried == {"corrupt" if fate == "crc_error_rate" else "lost": 1}
+
+
+class _Scripted(BusTiming):
+    """A bus whose status packets meet the fates of ``script`` in turn, then arrive."""
+
+    def __init__(self, script):
+        super().__init__(1_000_000, 0.0, 0.0)
+        self.script = list(script)
+
+    def fate(self) -> str:
+        return self.script.pop(0) if self.script else "sent"
+
+
+def test_a_corrupt_or_lost_reply_is_read_again_and_the_retry_is_the_reading():
+    """One servo's status packet corrupt, then (the next period) one lost: each read is sent
+    again once and answers with the servos' true positions, the retries counted by cause and
+    said in the loop's timing; with no retry allowed the same corrupt packet ends the read."""
+    from stewart_drake.station.bus.emulator import BusEmulator
+
+    with BusEmulator([1, 2, 3, 4, 5, 6]) as emu:
+        bus = _bus_on(emu, reply_timeout_s=0.2)  # wait-kept: a lost reply must time out
+        bus.open()
+        bus.configure()
+        truth = bus.read_state().q
+        emu.timing = _Scripted(["sent", "sent", "corrupt"])
+        np.testing.assert_array_equal(bus.read_state().q, truth)
+        assert bus.reads_retried == {"corrupt": 1}
+        emu.timing = _Scripted(["lost"])
+        np.testing.assert_array_equal(bus.read_state().q, truth)
+        assert bus.reads_retried == {"corrupt": 1, "lost": 1}
+        bus.read_retries = 0
+        emu.timing = _Scripted(["corrupt"])
+        with pytest.raises(BusError, match="sync read") as err:
+            bus.read_state()
+        assert "sent 1 times" not in str(err.value) and "(sent" not in str(err.value)
+        bus.close()
 
 
 # -- the servos behind the bus, read back from the plant ----------------------------------------

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...base.checks import check_int
 from ...base.errors import (
     BusError,
     InvalidConfigError,
@@ -86,7 +87,10 @@ class DynamixelBus:
             the model's whole range.
         watchdog_s: the servos' bus watchdog, s: a multiple of 20 ms in 0.02..2.54.
         reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
-            for a USB adapter's 16 ms latency timer). A missed reply is a BusError.
+            for a USB adapter's 16 ms latency timer).
+        read_retries: how many times a period's sync read is sent again after a corrupt or
+            missing status packet (a bus's noise: a read whose retries fail too is a
+            BusError; a port that fails is one at once); counted in ``reads_retried``.
         timing_window: how many round trips :meth:`timing` keeps.
         surrogate: the external surrogate's servo (:class:`~.servos.SurrogateServoConfig`,
             checked), a seventh row of every sync read and sync write, configured, powered and
@@ -112,6 +116,7 @@ class DynamixelBus:
         reply_timeout_s: float | None = None,
         timing_window: int = 100_000,
         surrogate: SurrogateServoConfig | None = None,
+        read_retries: int = 1,
     ):
         settings = check_bus_settings(
             baud_rate,
@@ -132,6 +137,9 @@ class DynamixelBus:
         limit_units, watchdog_units = settings.current_limit_units, settings.watchdog_units
         lo, hi = settings.position_limits_counts
         self.reply_timeout_s = reply_timeout_s
+        self.read_retries = check_int("read_retries", read_retries, 0, 10)
+        #: Sync reads sent again after a corrupt or missing reply, {cause: count}.
+        self.reads_retried: dict[str, int] = {}
         self.port_name, self.baud_rate, self.ids = str(port), int(baud_rate), ids
         self.zero_counts, self.directions = zero, sign
         self.current_limit_units = int(limit_units)
@@ -222,6 +230,7 @@ class DynamixelBus:
             watchdog_s=config.watchdog_s,
             reply_timeout_s=config.reply_timeout_s,
             surrogate=config.surrogate,
+            read_retries=config.read_retries,
         )
 
     # --- lifetime ----------------------------------------------------------------------------
@@ -409,13 +418,34 @@ class DynamixelBus:
 
     def read_state(self) -> BusState:
         """One sync read of Present Current, Velocity and Position (126..135 on the X series,
-        574..583 on the P series).
+        574..583 on the P series), sent again up to ``read_retries`` times after a corrupt or
+        missing status packet (each counted in ``reads_retried``); the time it reports is the
+        read that answered.
 
         Raises:
-            BusError: a servo does not answer (no status packet within the reply timeout), a
-                corrupt status packet, or the port fails (torque off first).
+            BusError: a servo does not answer (no status packet within the reply timeout) or
+                answers corrupt, on the read and each retry; or the port fails (torque off
+                first).
         """
         self._require_open()
+        for attempt in range(self.read_retries + 1):
+            failed = self._sync_read()
+            if failed is None:
+                break
+            if attempt == self.read_retries:
+                retried = f" (sent {attempt + 1} times)" if attempt else ""
+                self._fail(f"sync read: {self._packets.getTxRxResult(failed)}{retried}")
+            cause = "lost" if failed == self._sdk.COMM_RX_TIMEOUT else "corrupt"
+            self.reads_retried[cause] = self.reads_retried.get(cause, 0) + 1
+        return self._state()
+
+    def _sync_read(self):
+        """One sync read into the raw buffer, its round trip kept: None, or the SDK's result
+        code of what failed (a reply missing, corrupt, or the request not sent).
+
+        Raises:
+            BusError: the port fails (torque off first).
+        """
         fd, rx, found = self._fd, self._rx, self._found
         found[:] = False
         received, count = 0, 0
@@ -446,8 +476,14 @@ class DynamixelBus:
             result = sdk.COMM_RX_TIMEOUT if count >= 0 and not received else sdk.COMM_RX_CORRUPT
             if sent != len(self._request):
                 result = sdk.COMM_TX_FAIL
-            self._fail(f"sync read: {self._packets.getTxRxResult(result)}")
+            return result
         self.read_times.append(t1 - t0)
+        self._read_t = (t0, t1)
+        return None
+
+    def _state(self) -> BusState:
+        """The state the last sync read holds (:meth:`read_state`)."""
+        t0, t1 = self._read_t
         n = len(self.ids)
         state = np.empty((3, n))
         spec = self.spec

@@ -436,6 +436,9 @@ class DynamixelBusConfig:
         position_limits_counts: (min, max) written to the servos (Position Control Mode only).
         watchdog_s: the servos' bus watchdog, s (a multiple of 20 ms in 0.02..2.54).
         reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
+        read_retries: a period's sync read sent again this many times (0..10) after a corrupt
+            or missing reply before the run ends (a bus's noise; each retry counted in the
+            run's timing).
         max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
             period missed beyond this many (0: at the first miss).
         surrogate: the external surrogate's stage as a seventh servo on this bus
@@ -459,6 +462,7 @@ class DynamixelBusConfig:
     position_limits_counts: list[int] = field(default_factory=lambda: [0, 4095])
     watchdog_s: float = 0.1
     reply_timeout_s: float | None = None
+    read_retries: int = 1
     max_deadline_misses: int = 10
     surrogate: SurrogateServoConfig | None = None
 
@@ -494,6 +498,7 @@ class DynamixelBusConfig:
             )
         self._settings()
         check_int("bus.max_deadline_misses", self.max_deadline_misses, 0, 10**9)
+        check_int("bus.read_retries", self.read_retries, 0, 10)
         lo, hi = BUS_CONTROL_PERIODS_S
         if not lo - 1e-12 <= control_period_s <= hi + 1e-12:
             raise InvalidConfigError(

@@ -388,6 +388,15 @@ class DynamixelDriver(LeafSystem):
                 "before the loop started (the session's wait for a first sample, its checks), "
                 "not a late period; the ages above are the later periods'"
             )
+        retried = getattr(self.bus, "reads_retried", {})
+        if retried:
+            lines.append(
+                f"reads sent again: {sum(retried.values())} ("
+                + ", ".join(
+                    f"{n} {cause} repl{'y' if n == 1 else 'ies'}" for cause, n in retried.items()
+                )
+                + "), each period's reading the retry's"
+            )
         causes = ", ".join(f"{what} {n}" for what, n in s["late_causes"].items())
         late = sum(s["late_causes"].values())
         if late:
