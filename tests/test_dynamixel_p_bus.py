@@ -165,3 +165,16 @@ def test_phantom_bus_is_the_robot_of_the_p_series_servos():
     assert plan.scenario.hardware.encoders.counts_per_rev == 526_374
     assert plan.servo.name == f"ROBOTIS DYNAMIXEL-P {MODEL} (24 V)"
     assert plan.torque_limit_Nm == pytest.approx(1.2 * 1.7 / 0.6)
+
+
+def test_each_servos_counts_a_turn_have_one_source_the_catalogue_and_are_the_emanuals():
+    """The bus's counts a turn are the motor catalogue's (the planner's encoders and the
+    driver's conversions cannot disagree), and those are the e-Manual's: 4096 on the X series,
+    526,374 pulses on the PM42-010, 607,500 on the PH42-020 (their specification tables)."""
+    from stewart_drake.robot.motor_catalogue import catalogue_motor
+    from stewart_drake.station.bus.servos import SERVO_SPECS
+
+    emanual = {"PM42-010-S260-R": 526_374, "PH42-020-S300-R": 607_500}
+    for name, spec in SERVO_SPECS.items():
+        assert spec.counts_per_rev == catalogue_motor(name).encoder_counts_per_rev, name
+        assert spec.counts_per_rev == emanual.get(name, 4096), name

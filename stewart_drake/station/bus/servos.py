@@ -98,9 +98,26 @@ BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4
 P_BAUD_RATES = BAUD_RATES + (6_000_000, 10_500_000)
 
 
-def _p_spec(name: str, model_number: int, limit_mA: int, continuous_A: float, counts: int):
+def _x_spec(name: str, model_number: int, unit_A: float | None, limit_units: int, stall_A: float):
+    """An X-series model: its table, its current unit and limit, its stall current at 12 V, and
+    its encoder's counts a turn the motor catalogue's (one source for both)."""
+    return ServoSpec(
+        name,
+        model_number,
+        unit_A,
+        limit_units,
+        stall_A,
+        _EMANUAL + name.lower().rsplit("-", 1)[0] + "/",
+        counts_per_rev=catalogue_motor(name).encoder_counts_per_rev,
+        baud_rates=BAUD_RATES if unit_A is not None else (),
+    )
+
+
+def _p_spec(name: str, model_number: int, limit_mA: int, continuous_A: float):
     """A DYNAMIXEL-P model: its table, 1 mA current units, 0.01 rpm velocity units, its
-    encoder's counts a turn, Position Limits within a turn either side of 0 (zero at 0)."""
+    encoder's counts a turn (the motor catalogue's: one source for both), Position Limits
+    within a turn either side of 0 (zero at 0)."""
+    counts = catalogue_motor(name).encoder_counts_per_rev
     half = counts // 2
     return ServoSpec(
         name,
@@ -123,27 +140,11 @@ def _p_spec(name: str, model_number: int, limit_mA: int, continuous_A: float, co
 SERVO_SPECS: dict[str, ServoSpec] = {
     s.name: s
     for s in (
-        ServoSpec(
-            "XM430-W350-T",
-            1020,
-            2.69e-3,
-            1193,
-            2.3,
-            _EMANUAL + "xm430-w350/",
-            baud_rates=BAUD_RATES,
-        ),
-        ServoSpec(
-            "XM540-W270-T",
-            1120,
-            2.69e-3,
-            2047,
-            4.4,
-            _EMANUAL + "xm540-w270/",
-            baud_rates=BAUD_RATES,
-        ),
-        ServoSpec("XL430-W250-T", 1060, None, 0, 1.4, _EMANUAL + "xl430-w250/"),
-        _p_spec("PM42-010-S260-R", 2100, 1461, 0.6, 526_374),
-        _p_spec("PH42-020-S300-R", 2000, 4500, 1.5, 607_500),
+        _x_spec("XM430-W350-T", 1020, 2.69e-3, 1193, 2.3),
+        _x_spec("XM540-W270-T", 1120, 2.69e-3, 2047, 4.4),
+        _x_spec("XL430-W250-T", 1060, None, 0, 1.4),
+        _p_spec("PM42-010-S260-R", 2100, 1461, 0.6),
+        _p_spec("PH42-020-S300-R", 2000, 4500, 1.5),
     )
 }
 
