@@ -351,3 +351,17 @@ def test_the_encoders_read_their_non_linearity_on_the_output(realistic_xm430):
     )
     assert np.max(np.abs(read - theta)) > 0.05 * count  # the cranks are off 0: it shows
     backend.servos = servos
+
+
+def test_the_realistic_servos_pwm_drives_each_ones_own_winding(realistic_xm430):
+    """Position Control Mode's drive: a duty of the servos' 12 V through each one's own
+    winding, less its back-EMF at its motor's rate (at rest, none): by hand."""
+    backend, servos, _ = realistic_xm430
+    duty = np.array([0.1, -0.1, 0.2, 0.0, -0.3, 0.05])
+    rates = backend._motor_rates()
+    expected = (duty * 12.0 - servos.k_Nm_per_A * rates) / servos.resistance_ohm
+    np.testing.assert_allclose(backend.pwm_currents(duty), expected, rtol=1e-12)
+    assert servos.supply_V == 12.0 and np.all(np.abs(rates) < 1e-3)
+    np.testing.assert_allclose(
+        backend.pwm_currents(duty), duty * 12.0 / servos.resistance_ohm, atol=1e-3
+    )

@@ -132,6 +132,7 @@ class StationServos(ServoBackend):
         self._root = self.simulator.get_mutable_context()
         self._plant_context = self.station.plant.GetMyMutableContextFromRoot(self._root)
         self._torque_port = self.simulator.get_system().get_input_port(0)
+        self._motors = list(self.station.handles.motors)
 
     def advance(self, dt_s, current_A):
         tau = self.spec.torque_constant_Nm_per_A * np.asarray(current_A, dtype=float)
@@ -152,6 +153,22 @@ class StationServos(ServoBackend):
     def velocities_rad_s(self):
         station = self.station
         return crank_rates(station.plant, self._plant_context, station.handles)
+
+    def _motor_rates(self) -> np.ndarray:
+        """(6,) the motors' rates at the horn, rad/s (inside any gear play)."""
+        return np.array([m.get_angular_rate(self._plant_context) for m in self._motors])
+
+    def pwm_currents(self, duty):
+        """The catalogue's servo driven at ``duty`` of its family's supply: ``(d V - k_e v) /
+        R``, ``R`` the supply over the stall current, ``k_e`` the supply over the no-load speed
+        (the catalogue's figures, as the controller believes them), A."""
+        from ..station.bus.emulator_config import SUPPLY_V
+
+        supply = SUPPLY_V[self.spec.table.family]
+        servo = catalogue_motor(self.spec.name).servo
+        k_e = supply / servo.no_load_speed_rad_s
+        r = supply / self.spec.stall_current_A
+        return (np.asarray(duty, dtype=float) * supply - k_e * self._motor_rates()) / r
 
 
 class RealisticServos(StationServos):
@@ -181,7 +198,6 @@ class RealisticServos(StationServos):
         plant = self.station.plant
         # crank k's friction actuator is "friction_k" (plant.add_stewart_plant)
         self._friction = [plant.GetJointActuatorByName(f"friction_{k}") for k in range(6)]
-        self._motors = list(self.station.handles.motors)
         self._i = np.zeros(6)
         self._rng = np.random.default_rng([servos.seed, 1])
         self._count = self.spec.rad_per_count
@@ -195,7 +211,7 @@ class RealisticServos(StationServos):
         if not np.any(target) and not np.any(self._i):  # at rest, unpowered
             super().advance(dt_s, target)
             return
-        v = np.array([m.get_angular_rate(self._plant_context) for m in self._motors])
+        v = self._motor_rates()
         for k in range(6):
             self._i[k] = current_step(
                 self._i[k], target[k], dt_s, s.current_time_constant_s, v[k], s.supply_V,
@@ -211,6 +227,16 @@ class RealisticServos(StationServos):
     def currents_A(self) -> np.ndarray:
         """(6,) the currents the servos drive now, A (Present Current)."""
         return self._i.copy()
+
+    def pwm_currents(self, duty):
+        """Each servo as it is driven at ``duty`` of its supply (the family's where the set
+        has no voltage limit): ``(d V - k v) / R`` with its own motor constant and winding, A."""
+        from ..station.bus.emulator_config import SUPPLY_V
+
+        s = self.servos
+        supply = s.supply_V if np.isfinite(s.supply_V) else SUPPLY_V[self.spec.table.family]
+        drive = np.asarray(duty, dtype=float) * supply - s.k_Nm_per_A * self._motor_rates()
+        return drive / s.resistance_ohm
 
     def positions_rad(self):
         s = self.servos

@@ -88,6 +88,11 @@ class DynamixelBus:
         watchdog_s: the servos' bus watchdog, s: a multiple of 20 ms in 0.02..2.54.
         reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
             for a USB adapter's 16 ms latency timer).
+        position_gains_raw: the servos' own position loop (Position Control Mode) with these
+            control-table (Position D, I, P, Feedforward 1st) Gains
+            (:func:`~.servo_firmware.raw_position_gains`), its goals streamed by
+            :meth:`write_goals`; None (default): Current Control Mode, torques by
+            :meth:`write_torques`.
         read_retries: how many times a period's sync read is sent again after a corrupt or
             missing status packet (a bus's noise: a read whose retries fail too is a
             BusError; a port that fails is one at once); counted in ``reads_retried``.
@@ -117,6 +122,7 @@ class DynamixelBus:
         timing_window: int = 100_000,
         surrogate: SurrogateServoConfig | None = None,
         read_retries: int = 1,
+        position_gains_raw: tuple[int, int, int, int] | None = None,
     ):
         settings = check_bus_settings(
             baud_rate,
@@ -154,6 +160,20 @@ class DynamixelBus:
             "Max Position Limit": (table.max_position_limit, hi),
             "Bus Watchdog": (table.bus_watchdog, watchdog_units),
         }
+        #: The servos' own position loop's raw gains, or None (Current Control Mode).
+        self.position_gains_raw = _checked_gains(position_gains_raw, self.spec, surrogate)
+        if self.position_gains_raw is not None:
+            self.settings["Operating Mode"] = (table.operating_mode, p.POSITION_CONTROL_MODE)
+            names = (
+                "Position D Gain",
+                "Position I Gain",
+                "Position P Gain",
+                "Feedforward 1st Gain",
+            )
+            for name, item, value in zip(
+                names, table.position_gains, self.position_gains_raw, strict=True
+            ):
+                self.settings[name] = (item, value)
         #: The surrogate's servo (None: none), its model and its settings: the cranks', with
         #: its own Current Limit.
         self.surrogate = surrogate
@@ -351,11 +371,19 @@ class DynamixelBus:
                     raise ServoConfigMismatchError(i, name, value, read)
 
     def enable_torque(self) -> None:
-        """Torque Enable = 1 on every servo (read back). The caller checks the pose first.
+        """Torque Enable = 1 on every servo (read back). The caller checks the pose first. In
+        Position Control Mode each servo's Goal Position is first its present one (no profile),
+        so that its own loop holds it where it is.
 
         Raises:
             BusError: a servo refuses (after a torque off).
         """
+        if self.position_gains_raw is not None:
+            table = self.table
+            for i in self.ids:
+                here = p.to_signed(self._read(i, table.present_position), 4)
+                self._write(i, table.profile_velocity, 0)
+                self._write(i, table.goal_position, here)
         for i in self.all_ids:
             self._write(i, self.table.torque_enable, 1)
             if self._read(i, self.table.torque_enable) != 1:
@@ -565,6 +593,51 @@ class DynamixelBus:
         self.write_times.append(t1 - t0)
         return applied
 
+    def write_goals(self, q_rad, profile_rad_s=None) -> np.ndarray:
+        """One sync write of each crank's Profile Velocity and Goal Position (contiguous: 8
+        bytes a servo) in Position Control Mode: the cranks' goal angles ``q_rad`` (n,), rad,
+        each reached at ``profile_rad_s`` (n,), rad/s (its size; less than one unit is sent as
+        one, for 0 is no profile); None: no profile, each goal at once.
+
+        Returns:
+            (n,) the goal angles sent, rad (whole counts).
+        Raises:
+            InvalidConfigError: a bus in Current Control Mode, or angles or rates of another
+                shape or not finite (nothing sent).
+            BusError: the port fails (torque off first).
+        """
+        if self.position_gains_raw is None:
+            raise InvalidConfigError(
+                "write_goals: the bus runs Current Control Mode (give position_gains_raw)"
+            )
+        q = np.asarray(q_rad, dtype=float)
+        n = len(self.ids)
+        v = np.abs(np.asarray(np.zeros(n) if profile_rad_s is None else profile_rad_s, float))
+        if (
+            q.shape != (n,)
+            or v.shape != (n,)
+            or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v)))
+        ):
+            raise InvalidConfigError(f"write_goals needs {n} finite angles and rates")
+        self._require_open()
+        spec, table = self.spec, self.table
+        counts = np.rint(self.zero_counts + self.directions * q / spec.rad_per_count)
+        units = np.rint(v / spec.velocity_unit_rad_s)
+        if profile_rad_s is not None:
+            units = np.maximum(units, 1)
+        group = self._sdk.GroupSyncWrite(self._port, self._packets, table.profile_velocity[0], 8)
+        for i, c, u in zip(self.ids, counts, units, strict=True):
+            data = int(u).to_bytes(4, "little") + p.to_unsigned(int(c), 4).to_bytes(4, "little")
+            group.addParam(i, list(data))
+        with self.lock:
+            t0 = time.perf_counter()
+            result = group.txPacket()
+            t1 = time.perf_counter()
+        if result != self._sdk.COMM_SUCCESS:
+            self._fail(f"sync write of goals: {self._packets.getTxRxResult(result)}")
+        self.write_times.append(t1 - t0)
+        return (counts - self.zero_counts) * self.directions * spec.rad_per_count
+
     def timing(self) -> dict:
         """Round trips kept so far, s: {"read"|"write": {"n", "median", "p99", "max"}}."""
         out = {}
@@ -625,3 +698,26 @@ class DynamixelBus:
             self._fail(f"{what}: {self._packets.getTxRxResult(result)}")
         if error & 0x7F:
             self._fail(f"{what}: {self._packets.getRxPacketError(error)}")
+
+
+def _checked_gains(raw, spec, surrogate) -> tuple[int, int, int, int] | None:
+    """``raw`` (Position D, I, P, Feedforward 1st Gains) checked for ``spec``'s table.
+
+    Raises:
+        InvalidConfigError: four integers within the table's range are not given, or a
+            surrogate shares the bus (its stage runs Current Control Mode).
+    """
+    if raw is None:
+        return None
+    from .servo_firmware import GAIN_MAX
+
+    top = GAIN_MAX[spec.table.family]
+    values = tuple(raw)
+    if len(values) != 4 or not all(isinstance(v, int) and 0 <= v <= top for v in values):
+        raise InvalidConfigError(
+            f"position_gains_raw must be 4 integers (Position D, I, P, Feedforward 1st) in "
+            f"0..{top} for {spec.name}, got {raw!r}"
+        )
+    if surrogate is not None:
+        raise InvalidConfigError("Position Control Mode with a surrogate on the bus: not yet")
+    return values

@@ -88,6 +88,27 @@ class _Servo:
             return 0.0
         return p.to_signed(self.get(t.goal_current), 2) * self.spec.current_unit_A
 
+    def in_position_mode(self) -> bool:
+        """Its own position loop drives it: Position Control Mode, the torque on, no watchdog
+        trip and no hardware error."""
+        t = self.items
+        return (
+            self.get(t.torque_enable) == 1
+            and not self.watchdog_tripped
+            and not self.get(t.hardware_error_status)
+            and self.get(t.operating_mode) == p.POSITION_CONTROL_MODE
+            and bool(t.position_gains)
+        )
+
+    def position_command(self) -> tuple:
+        """(Goal Position counts, Profile Velocity units, the raw (D, I, P, FF1st) Gains)."""
+        t = self.items
+        return (
+            p.to_signed(self.get(t.goal_position), 4),
+            self.get(t.profile_velocity),
+            tuple(self.get(item) for item in t.position_gains),
+        )
+
     def write(self, address: int, data: bytes) -> int:
         """Write ``data`` at ``address``: the status error (0 if written)."""
         t = self.items
@@ -153,9 +174,19 @@ class BusEmulator:
         return_delay_us: the Return Delay Time every servo's table starts with, us (the
             factory's is 500; the driver may write its own).
 
+    A servo in Position Control Mode (operating mode 3, the torque on) runs its own position
+    loop (:class:`~.servo_firmware.PositionFirmware`, from its table's Position Gains, Goal
+    Position and Profile Velocity) every :attr:`FIRMWARE_PERIOD_S` of the model, on its own
+    reading, its PWM driving the backend's winding (:meth:`~.servo_models.ServoBackend.
+    pwm_currents`); it starts from where it is when its torque goes on, towards its Goal
+    Position. Goals written while the model steps act from its next step.
+
     Raises:
         InvalidConfigError: bad ids or model, a backend of another size.
     """
+
+    #: The period of an emulated servo's own position loop, s (not published: ours).
+    FIRMWARE_PERIOD_S = 1e-3
 
     def __init__(
         self,
@@ -217,6 +248,9 @@ class BusEmulator:
         self.dropped_bytes = 0
         self.port = os.ttyname(self._slave)
         self._t = time.perf_counter()
+        #: {servo index: (PositionFirmware, its command)} of the servos in Position Control Mode.
+        self._firmware: dict[int, tuple] = {}
+        self._pwm_currents: dict[int, float] = {}
         self._update_present()
 
     # --- lifetime ----------------------------------------------------------------------------
@@ -403,8 +437,8 @@ class BusEmulator:
                     self._t = now - self.max_step_s
                 t_trip = min((t for t, _ in self._armed()), default=math.inf)
                 t_next = min(now, max(t_trip, self._t))
-                currents = np.array([self.servos[i].current_A() for i in self.ids])
-            self.backend.advance(t_next - self._t, currents)
+                currents, commands = self._commands()
+            self._advance(t_next - self._t, currents, commands)
             with self._lock:
                 self._t = t_next
                 for t, servo in self._armed():  # re-read: an instruction may have come
@@ -432,10 +466,67 @@ class BusEmulator:
         commanded, and the present values follow (called by the bus thread, the table's lock
         held: the next read waits for the step)."""
         step_s = float(self.command_step_s or 0.0)  # set: only the commanded clock calls this
-        currents = np.array([self.servos[i].current_A() for i in self.ids])
+        currents, commands = self._commands()
         with self._model_lock:
-            self.backend.advance(step_s, currents)
+            self._advance(step_s, currents, commands)
             self._update_present()
+
+    def _commands(self) -> tuple[np.ndarray, dict]:
+        """(the Goal Currents each servo drives (n,), A; {index: its position command} of the
+        servos in Position Control Mode), read from the tables (the caller holds their lock)."""
+        currents = np.array([self.servos[i].current_A() for i in self.ids])
+        commands = {
+            k: self.servos[i].position_command()
+            for k, i in enumerate(self.ids)
+            if self.servos[i].in_position_mode()
+        }
+        return currents, commands
+
+    def _advance(self, dt_s: float, currents: np.ndarray, commands: dict) -> None:
+        """Step the backend ``dt_s``: the servos in Current Control Mode at their Goal Current,
+        those in Position Control Mode (``commands``) by their own loop each firmware period."""
+        for k in list(self._firmware):
+            if k not in commands:  # its torque went off, or its mode changed: the loop restarts
+                del self._firmware[k]
+                self._pwm_currents.pop(k, None)
+        if not commands:
+            self.backend.advance(dt_s, currents)
+            return
+        steps = max(1, round(dt_s / self.FIRMWARE_PERIOD_S))
+        h = dt_s / steps
+        for _ in range(steps):
+            read = self.backend.positions_rad()
+            duty = np.zeros(len(self.ids))
+            for k, command in commands.items():
+                duty[k] = self._firmware_of(k, command, read[k]).duty(read[k : k + 1])[0]
+            drive = self.backend.pwm_currents(duty)
+            for k in commands:
+                currents[k] = self._pwm_currents[k] = float(drive[k])
+            self.backend.advance(h, currents)
+
+    def _firmware_of(self, k: int, command: tuple, read_rad: float):
+        """Servo ``k``'s position loop, made when its torque went on (from where it is) and
+        told of every new command."""
+        from .emulator_config import SUPPLY_V
+        from .servo_firmware import PositionFirmware, table_position_gains
+
+        spec = self.servos[self.ids[k]].spec
+        held = self._firmware.get(k)
+        if held is not None and held[1] == command:
+            return held[0]
+        goal_counts, profile_units, raw = command
+        gains = table_position_gains(raw, spec, SUPPLY_V[spec.table.family], self.FIRMWARE_PERIOD_S)
+        if held is None:
+            firmware = PositionFirmware(gains, spec.rad_per_count, [read_rad])
+        else:
+            firmware = held[0]
+            firmware.gains = gains
+        goal = (goal_counts - float(self.zero_counts[k])) * spec.rad_per_count
+        profile = None if profile_units == 0 else [profile_units * spec.velocity_unit_rad_s]
+        if held is None or held[1][:2] != command[:2]:
+            firmware.set_goal([goal], profile)
+        self._firmware[k] = (firmware, command)
+        return firmware
 
     def _armed(self) -> list:
         """[(expiry time, servo)] of the servos whose bus watchdog is running."""
@@ -457,6 +548,8 @@ class BusEmulator:
             s.put(t.present_velocity, round(float(v[k]) / spec.velocity_unit_rad_s))
             unit = spec.current_unit_A
             i = s.current_A() if currents is None or k >= len(currents) else currents[k]
+            if currents is None and k in self._pwm_currents:
+                i = self._pwm_currents[k]
             s.put(t.present_current, round(i / unit) if unit else 0)
 
     # --- the protocol ------------------------------------------------------------------------
@@ -514,6 +607,8 @@ class BusEmulator:
                 if rows[k] in targets:
                     self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
             goals = {s.items.goal_current[0] for s in self.servos.values()}
+            goals |= {s.items.profile_velocity[0] for s in self.servos.values()}
+            goals |= {s.items.goal_position[0] for s in self.servos.values()}
             if self.command_step_s is not None and address in goals:
                 self._step_commanded()
             return b""

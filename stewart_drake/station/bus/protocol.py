@@ -87,6 +87,8 @@ EEPROM_END = 64
 STATE_BLOCK = (PRESENT_CURRENT[0], 10)
 
 CURRENT_CONTROL_MODE = 0
+#: Position Control Mode (both families): the servo's own position loop (docs/robot.md).
+POSITION_CONTROL_MODE = 3
 WATCHDOG_UNIT_S = 0.020
 WATCHDOG_TRIPPED = 0xFF
 #: Counts per turn of the X-series servos' absolute encoder (on the horn, the crank's axis).
@@ -111,6 +113,10 @@ class ControlTable:
             only with the torque off). goals: [start, end) of the Goal items, read-only after a
             bus watchdog trip. read_only: [start, end) ranges no WRITE may touch. size: the
             table's length the emulator keeps, bytes.
+        position_gains: the Position D, I and P Gains and the Feedforward 1st Gain, in that
+            order (2 bytes each). profile_velocity, goal_position: contiguous in both families
+            (one sync write streams both). pwm_full: the PWM's 100 %, in Goal PWM's units (the
+            PWM Limit's largest value).
     """
 
     family: str
@@ -131,6 +137,10 @@ class ControlTable:
     goals: tuple[int, int]
     read_only: tuple[tuple[int, int], ...]
     size: int
+    position_gains: tuple[tuple[int, int], ...] = ()
+    profile_velocity: tuple[int, int] = (0, 0)
+    goal_position: tuple[int, int] = (0, 0)
+    pwm_full: int = 0
 
     @property
     def state_block(self) -> tuple[int, int]:
@@ -159,6 +169,10 @@ X_SERIES = ControlTable(
     goals=(100, 120),  # Goal PWM .. Goal Position
     read_only=((0, 7), (70, 71), (120, 147)),
     size=147,
+    position_gains=((80, 2), (82, 2), (84, 2), (90, 2)),
+    profile_velocity=(112, 4),  # 0.229 rpm; 0: no profile
+    goal_position=(116, 4),
+    pwm_full=885,
 )
 #: The DYNAMIXEL-P series' table (e-Manual, PM42-010-S260-R / PH42-020-S300-R "Control Table").
 P_SERIES = ControlTable(
@@ -180,6 +194,10 @@ P_SERIES = ControlTable(
     goals=(548, 568),  # Goal PWM .. Goal Position
     read_only=((0, 7), (517, 519), (568, 600)),
     size=608,
+    position_gains=((528, 2), (530, 2), (532, 2), (538, 2)),
+    profile_velocity=(560, 4),  # 0.01 rpm; 0: no profile
+    goal_position=(564, 4),
+    pwm_full=2009,
 )
 
 

@@ -175,4 +175,61 @@ class PositionFirmware:
         return np.clip(u / g.supply_V, -1.0, 1.0)
 
 
-__all__ = ["PositionGains", "position_gains", "PositionFirmware"]
+#: The raw gains' divisors (X series e-Manual, "Position PID Gain": K_PD = D / 16, K_PI = I /
+#: 65536, K_PP = P / 128, K_FF1st = FF / 4), in the order of
+#: :attr:`~.protocol.ControlTable.position_gains`; the DYNAMIXEL-P's e-Manual gives none, and
+#: these are taken for it too until its bench says otherwise (docs/servo_bench.md).
+GAIN_DIVISORS = (16.0, 65536.0, 128.0, 4.0)
+#: The raw gains' largest value, by family (e-Manual, "Control Table").
+GAIN_MAX = {"X": 16383, "P": 32767}
+
+
+def _unit_scales(spec, supply_V: float, period_s: float) -> np.ndarray:
+    """SI per raw unit of (K_D, K_I, K_P, K_FF): the firmware's output in PWM units over
+    ``spec.table.pwm_full`` of ``supply_V``, its error in counts, its integral summed and its
+    rates differenced each ``period_s``."""
+    volts_per_count = supply_V / spec.table.pwm_full / spec.rad_per_count
+    h = period_s
+    return volts_per_count * np.array([h, 1.0 / h, 1.0, h]) / np.array(GAIN_DIVISORS)
+
+
+def raw_position_gains(gains: PositionGains, spec) -> tuple[int, int, int, int]:
+    """The control table's (Position D, I, P, Feedforward 1st) Gains of ``gains`` on the
+    servo ``spec`` (a :class:`~.servos.ServoSpec`), rounded.
+
+    Raises:
+        InvalidConfigError: a gain past the table's largest value (named, with its SI figure).
+    """
+    from ...base.errors import InvalidConfigError
+
+    scales = _unit_scales(spec, gains.supply_V, gains.period_s)
+    si = (gains.d_V_s_per_rad, gains.i_V_per_rad_s, gains.p_V_per_rad, gains.ff_V_s_per_rad)
+    raw = tuple(int(round(v / k)) for v, k in zip(si, scales, strict=True))
+    top = GAIN_MAX[spec.table.family]
+    for name, value, figure in zip(("D", "I", "P", "Feedforward 1st"), raw, si, strict=True):
+        if value > top:
+            raise InvalidConfigError(
+                f"{spec.name}'s Position {name} Gain would be {value} ({figure:.4g} SI), past "
+                f"its table's {top}: a slower loop, or a servo of finer counts"
+            )
+    return raw  # type: ignore[return-value]
+
+
+def table_position_gains(raw, spec, supply_V: float, period_s: float = 1e-3) -> PositionGains:
+    """The :class:`PositionGains` the firmware of ``spec`` runs for the control table's
+    (Position D, I, P, Feedforward 1st) Gains ``raw`` at ``supply_V``."""
+    d, i, p, ff = (
+        float(v) * k for v, k in zip(raw, _unit_scales(spec, supply_V, period_s), strict=True)
+    )
+    return PositionGains(p, i, d, ff, supply_V, period_s=period_s)
+
+
+__all__ = [
+    "PositionGains",
+    "position_gains",
+    "PositionFirmware",
+    "GAIN_DIVISORS",
+    "GAIN_MAX",
+    "raw_position_gains",
+    "table_position_gains",
+]

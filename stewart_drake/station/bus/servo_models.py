@@ -37,6 +37,18 @@ class ServoBackend(abc.ABC):
     def velocities_rad_s(self) -> np.ndarray:
         """(n,) horn rates, rad/s."""
 
+    def pwm_currents(self, duty) -> np.ndarray:
+        """(n,) the currents a PWM ``duty`` (n,) in [-1, 1] drives through each servo's
+        winding at its shaft's present rate, A (Position Control Mode: the firmware drives the
+        PWM, the back-EMF and the winding make the current).
+
+        Raises:
+            InvalidConfigError: a backend with no winding to drive (the default).
+        """
+        raise InvalidConfigError(
+            f"{type(self).__name__} has no PWM drive: its servos run Current Control Mode only"
+        )
+
 
 @dataclass
 class FirstOrderServos(ServoBackend):
@@ -130,6 +142,14 @@ class FirstOrderServos(ServoBackend):
 
     def velocities_rad_s(self):
         return self._v.copy()
+
+    def pwm_currents(self, duty):
+        """The current a duty drives: 12 V over the winding (``12 / i_stall`` ohm) against the
+        back-EMF (12 V at the no-load speed): ``i_stall (d - v / w_0)``, A."""
+        if not math.isfinite(self.stall_current_A):
+            return super().pwm_currents(duty)
+        v = self._v / self.no_load_speed if math.isfinite(self.no_load_speed) else 0.0
+        return self.stall_current_A * (np.asarray(duty, dtype=float) - v)
 
 
 class BenchServos(ServoBackend):
