@@ -276,7 +276,10 @@ def _emulated_excitation(seed: int, shares=(1.0,), seconds: float = 4.0):
     for share in shares:
         backend = BenchServos(hidden, bench.mass_kg, bench.length_m, q_offset_rad=[0.01])
         with BusEmulator([1], spec.name, backend=backend, command_step_s=0.01) as emu:
-            bus = DynamixelBus(emu.port, 1_000_000, [1], spec.name, reply_timeout_s=HANG_BUS_S)
+            bus = DynamixelBus(
+                emu.port, 1_000_000, [1], spec.name, reply_timeout_s=HANG_BUS_S,
+                watchdog_s=2.54,  # a loaded machine's pause between two writes is not a trip
+            )  # fmt: skip
             t = np.arange(0.0, seconds, 0.01)
             amplitude = share * safe_amplitude_A(bench, spec.torque_constant_Nm_per_A)
             logs.append(

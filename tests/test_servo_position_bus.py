@@ -63,7 +63,13 @@ def _bus(emu, raw):
     from stewart_drake.station.bus.driver import DynamixelBus
 
     return DynamixelBus(
-        emu.port, 1_000_000, [1], XM430.name, reply_timeout_s=HANG_BUS_S, position_gains_raw=raw
+        emu.port,
+        1_000_000,
+        [1],
+        XM430.name,
+        reply_timeout_s=HANG_BUS_S,
+        position_gains_raw=raw,
+        watchdog_s=2.54,  # a loaded machine's pause between two writes is not a trip
     )
 
 

@@ -281,7 +281,12 @@ def _cmd_excite(args) -> int:
     from ..station.bus.driver import DynamixelBus
 
     try:
-        bus = DynamixelBus(port, args.baud_rate, [args.id], args.servo, reply_timeout_s=2.0)
+        # On the emulator's own clock a pause of this machine is not the servo's: its bus
+        # watchdog at its longest; on a real servo the driver's 0.1 s.
+        watchdog_s = 2.54 if emulated is not None else 0.1
+        bus = DynamixelBus(
+            port, args.baud_rate, [args.id], args.servo, reply_timeout_s=2.0, watchdog_s=watchdog_s
+        )
         log = excite(bus, pendulum, currents, period, commanded=emulated is not None)
     finally:
         if emulated is not None:
