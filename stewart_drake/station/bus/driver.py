@@ -93,9 +93,11 @@ class DynamixelBus:
             (:func:`~.servo_firmware.raw_position_gains`), its goals streamed by
             :meth:`write_goals`; None (default): Current Control Mode, torques by
             :meth:`write_torques`.
-        read_retries: how many times a period's sync read is sent again after a corrupt or
-            missing status packet (a bus's noise: a read whose retries fail too is a
-            BusError; a port that fails is one at once); counted in ``reads_retried``.
+        read_retries: how many times a period's sync read is sent again after a corrupt
+            status packet (the servos answered, a byte was hit: a bus's noise), counted in
+            ``reads_retried``; a read whose retries fail too is a BusError, and so is a
+            missing reply at once (a silent bus, its wait already past the period, is not
+            waited out again while the servos hold their last command).
         timing_window: how many round trips :meth:`timing` keeps.
         surrogate: the external surrogate's servo (:class:`~.servos.SurrogateServoConfig`,
             checked), a seventh row of every sync read and sync write, configured, powered and
@@ -144,7 +146,7 @@ class DynamixelBus:
         lo, hi = settings.position_limits_counts
         self.reply_timeout_s = reply_timeout_s
         self.read_retries = check_int("read_retries", read_retries, 0, 10)
-        #: Sync reads sent again after a corrupt or missing reply, {cause: count}.
+        #: Sync reads sent again after a corrupt reply, {cause: count}.
         self.reads_retried: dict[str, int] = {}
         self.port_name, self.baud_rate, self.ids = str(port), int(baud_rate), ids
         self.zero_counts, self.directions = zero, sign
@@ -446,13 +448,13 @@ class DynamixelBus:
 
     def read_state(self) -> BusState:
         """One sync read of Present Current, Velocity and Position (126..135 on the X series,
-        574..583 on the P series), sent again up to ``read_retries`` times after a corrupt or
-        missing status packet (each counted in ``reads_retried``); the time it reports is the
-        read that answered.
+        574..583 on the P series), sent again up to ``read_retries`` times after a corrupt
+        status packet (each counted in ``reads_retried``); the time it reports is the read
+        that answered.
 
         Raises:
-            BusError: a servo does not answer (no status packet within the reply timeout) or
-                answers corrupt, on the read and each retry; or the port fails (torque off
+            BusError: a servo does not answer (no status packet within the reply timeout), or
+                answers corrupt on the read and each retry; or the port fails (torque off
                 first).
         """
         self._require_open()
@@ -460,11 +462,10 @@ class DynamixelBus:
             failed = self._sync_read()
             if failed is None:
                 break
-            if attempt == self.read_retries:
+            if attempt == self.read_retries or failed != self._sdk.COMM_RX_CORRUPT:
                 retried = f" (sent {attempt + 1} times)" if attempt else ""
                 self._fail(f"sync read: {self._packets.getTxRxResult(failed)}{retried}")
-            cause = "lost" if failed == self._sdk.COMM_RX_TIMEOUT else "corrupt"
-            self.reads_retried[cause] = self.reads_retried.get(cause, 0) + 1
+            self.reads_retried["corrupt"] = self.reads_retried.get("corrupt", 0) + 1
         return self._state()
 
     def _sync_read(self):

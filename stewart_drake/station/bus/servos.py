@@ -438,8 +438,8 @@ class DynamixelBusConfig:
         watchdog_s: the servos' bus watchdog, s (a multiple of 20 ms in 0.02..2.54).
         reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
         read_retries: a period's sync read sent again this many times (0..10) after a corrupt
-            or missing reply before the run ends (a bus's noise; each retry counted in the
-            run's timing).
+            reply before the run ends (a bus's noise; each retry counted in the run's timing);
+            a missing reply ends it at once.
         max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
             period missed beyond this many (0: at the first miss).
         surrogate: the external surrogate's stage as a seventh servo on this bus
