@@ -622,7 +622,7 @@ class DynamixelBus:
             raise InvalidConfigError(f"write_goals needs {n} finite angles and rates")
         self._require_open()
         spec, table = self.spec, self.table
-        counts = np.rint(self.zero_counts + self.directions * q / spec.rad_per_count)
+        counts = p.rad_to_counts(q, self.zero_counts, self.directions, spec.counts_per_rev)
         units = np.rint(v / spec.velocity_unit_rad_s)
         if profile_rad_s is not None:
             units = np.maximum(units, 1)
@@ -637,7 +637,7 @@ class DynamixelBus:
         if result != self._sdk.COMM_SUCCESS:
             self._fail(f"sync write of goals: {self._packets.getTxRxResult(result)}")
         self.write_times.append(t1 - t0)
-        return (counts - self.zero_counts) * self.directions * spec.rad_per_count
+        return p.counts_to_rad(counts, self.zero_counts, self.directions, spec.counts_per_rev)
 
     def timing(self) -> dict:
         """Round trips kept so far, s: {"read"|"write": {"n", "median", "p99", "max"}}."""

@@ -74,31 +74,27 @@ class _Servo:
     def watchdog_tripped(self) -> bool:
         return self.get(self.items.bus_watchdog) == p.WATCHDOG_TRIPPED
 
-    def current_A(self) -> float:
-        """What the servo drives: the Goal Current in Current Control Mode with the torque on,
-        no watchdog trip and no hardware error; zero otherwise."""
-        t = self.items
-        if (
-            self.get(t.torque_enable) != 1
-            or self.watchdog_tripped
-            or self.get(t.hardware_error_status)
-            or self.get(t.operating_mode) != p.CURRENT_CONTROL_MODE
-            or self.spec.current_unit_A is None
-        ):
-            return 0.0
-        return p.to_signed(self.get(t.goal_current), 2) * self.spec.current_unit_A
-
-    def in_position_mode(self) -> bool:
-        """Its own position loop drives it: Position Control Mode, the torque on, no watchdog
-        trip and no hardware error."""
+    def _driving_in(self, mode: int) -> bool:
+        """Its torque on in operating ``mode``, with no watchdog trip and no hardware error."""
         t = self.items
         return (
             self.get(t.torque_enable) == 1
             and not self.watchdog_tripped
             and not self.get(t.hardware_error_status)
-            and self.get(t.operating_mode) == p.POSITION_CONTROL_MODE
-            and bool(t.position_gains)
+            and self.get(t.operating_mode) == mode
         )
+
+    def current_A(self) -> float:
+        """What the servo drives: the Goal Current in Current Control Mode with the torque on,
+        no watchdog trip and no hardware error; zero otherwise."""
+        if not self._driving_in(p.CURRENT_CONTROL_MODE) or self.spec.current_unit_A is None:
+            return 0.0
+        return p.to_signed(self.get(self.items.goal_current), 2) * self.spec.current_unit_A
+
+    def in_position_mode(self) -> bool:
+        """Its own position loop drives it: Position Control Mode, the torque on, no watchdog
+        trip and no hardware error."""
+        return self._driving_in(p.POSITION_CONTROL_MODE) and bool(self.items.position_gains)
 
     def position_command(self) -> tuple:
         """(Goal Position counts, Profile Velocity units, the raw (D, I, P, FF1st) Gains)."""
