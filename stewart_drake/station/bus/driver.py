@@ -24,7 +24,6 @@ import select
 import termios
 import threading
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -35,40 +34,19 @@ from ...base.errors import (
     MissingServoError,
     ServoConfigMismatchError,
 )
+from ..surrogate.bus_servo import surrogate_settings
 from . import protocol as p
+from .position_mode import PositionMode, checked_gains
+from .protocol import BusState
 from .servos import (
     DynamixelBusConfig,
     SurrogateServoConfig,
     check_bus_settings,
-    servo_spec,
 )
 from .vendor_port import dynamixel_sdk, port_handler
 
 
-@dataclass(frozen=True)
-class BusState:
-    """One read of the bus; arrays (n,) in the order of the bus's ids, at the cranks.
-
-    Attributes:
-        q: crank angles, rad (zero offsets and directions applied).
-        v: crank rates, rad/s.  tau: the torques the servos drive (Present Current x K_t), N m.
-        t: perf_counter time, s, halfway through the read.  round_trip_s: the read's duration.
-        s, s_dot, s_tau: the surrogate's carriage (a bus with one,
-            :class:`~.servos.SurrogateServoConfig`): its position m, rate m/s and the
-            torque its servo drives, N m in the carriage's sense; NaN without a surrogate.
-    """
-
-    q: np.ndarray
-    v: np.ndarray
-    tau: np.ndarray
-    t: float
-    round_trip_s: float
-    s: float = float("nan")
-    s_dot: float = float("nan")
-    s_tau: float = float("nan")
-
-
-class DynamixelBus:
+class DynamixelBus(PositionMode):
     """Servos ``ids`` of one model on one port, torque-controlled.
 
     Args:
@@ -163,19 +141,9 @@ class DynamixelBus:
             "Bus Watchdog": (table.bus_watchdog, watchdog_units),
         }
         #: The servos' own position loop's raw gains, or None (Current Control Mode).
-        self.position_gains_raw = _checked_gains(position_gains_raw, self.spec, surrogate)
+        self.position_gains_raw = checked_gains(position_gains_raw, self.spec, surrogate)
         if self.position_gains_raw is not None:
-            self.settings["Operating Mode"] = (table.operating_mode, p.POSITION_CONTROL_MODE)
-            names = (
-                "Position D Gain",
-                "Position I Gain",
-                "Position P Gain",
-                "Feedforward 1st Gain",
-            )
-            for name, item, value in zip(
-                names, table.position_gains, self.position_gains_raw, strict=True
-            ):
-                self.settings[name] = (item, value)
+            self._position_settings()
         #: The surrogate's servo (None: none), its model and its settings: the cranks', with
         #: its own Current Limit.
         self.surrogate = surrogate
@@ -184,7 +152,11 @@ class DynamixelBus:
         self._specs = {i: self.spec for i in ids}
         self._settings_of = {i: self.settings for i in ids}
         if surrogate is not None:
-            self._add_surrogate(surrogate)
+            s_spec, units, s_settings = surrogate_settings(surrogate, self.spec, ids, self.settings)
+            self.surrogate_spec, self.surrogate_limit_units = s_spec, units
+            self.all_ids.append(int(surrogate.id))
+            self._specs[int(surrogate.id)] = s_spec
+            self._settings_of[int(surrogate.id)] = s_settings
         self.read_times: collections.deque = collections.deque(maxlen=timing_window)
         self.write_times: collections.deque = collections.deque(maxlen=timing_window)
         #: Whether the last :meth:`torque_off` was confirmed by every servo.
@@ -196,41 +168,14 @@ class DynamixelBus:
         self._port = None
         self._packets = self._sdk.PacketHandler(2.0)
 
-    def _add_surrogate(self, surrogate: SurrogateServoConfig) -> None:
-        """Put the surrogate's servo on the bus after the cranks': its model (one of the
-        cranks' series: one sync read and write serve every servo) and its settings, the
-        cranks' with its own Current Limit and its factory position range (multi-turn in
-        Current Control Mode: the limits do not apply).
-
-        Raises:
-            InvalidConfigError: a surrogate out of range, or a servo of another series.
-        """
-        table = self.table
-        surrogate.validate(self.ids, None, prefix="surrogate.")
-        s_spec = servo_spec(surrogate.model)
-        if s_spec.table != table:
-            raise InvalidConfigError(
-                f"surrogate.stage.motor {s_spec.name} keeps its items at other addresses "
-                f"than the cranks' {self.spec.name}: one sync read and write serve every "
-                f"servo of the bus; give the stage a servo of the {table.family} series"
-            )
-        s_units = s_spec.current_limit_max
-        if surrogate.current_limit_A is not None:
-            s_units = min(s_units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
-        self.surrogate_spec, self.surrogate_limit_units = s_spec, int(s_units)
-        self.all_ids.append(int(surrogate.id))
-        self._specs[int(surrogate.id)] = s_spec
-        self._settings_of[int(surrogate.id)] = self.settings | {
-            "Current Limit": (table.current_limit, self.surrogate_limit_units),
-            "Min Position Limit": (table.min_position_limit, s_spec.position_range[0]),
-            "Max Position Limit": (table.max_position_limit, s_spec.position_range[1]),
-        }
-
     @classmethod
-    def from_config(cls, config: DynamixelBusConfig) -> DynamixelBus:
+    def from_config(
+        cls, config: DynamixelBusConfig, position_gains_raw: tuple | None = None
+    ) -> DynamixelBus:
         """The bus of a scenario's ``bus`` section (:class:`~.servos.DynamixelBusConfig`, same
         names and units), not opened (``open``, ``configure``, ``enable_torque`` are the
-        caller's).
+        caller's); in Position Control Mode with ``position_gains_raw`` (its
+        ``position_loop``'s, :meth:`~.position_mode.ServoPositionLoop.raw_gains` on the robot).
 
         Raises:
             InvalidConfigError: a setting out of range. MissingExtraError: dynamixel-sdk is not
@@ -253,6 +198,7 @@ class DynamixelBus:
             reply_timeout_s=config.reply_timeout_s,
             surrogate=config.surrogate,
             read_retries=config.read_retries,
+            position_gains_raw=position_gains_raw,
         )
 
     # --- lifetime ----------------------------------------------------------------------------
@@ -381,11 +327,7 @@ class DynamixelBus:
             BusError: a servo refuses (after a torque off).
         """
         if self.position_gains_raw is not None:
-            table = self.table
-            for i in self.ids:
-                here = p.to_signed(self._read(i, table.present_position), 4)
-                self._write(i, table.profile_velocity, 0)
-                self._write(i, table.goal_position, here)
+            self._hold_where_they_are()
         for i in self.all_ids:
             self._write(i, self.table.torque_enable, 1)
             if self._read(i, self.table.torque_enable) != 1:
@@ -594,51 +536,6 @@ class DynamixelBus:
         self.write_times.append(t1 - t0)
         return applied
 
-    def write_goals(self, q_rad, profile_rad_s=None) -> np.ndarray:
-        """One sync write of each crank's Profile Velocity and Goal Position (contiguous: 8
-        bytes a servo) in Position Control Mode: the cranks' goal angles ``q_rad`` (n,), rad,
-        each reached at ``profile_rad_s`` (n,), rad/s (its size; less than one unit is sent as
-        one, for 0 is no profile); None: no profile, each goal at once.
-
-        Returns:
-            (n,) the goal angles sent, rad (whole counts).
-        Raises:
-            InvalidConfigError: a bus in Current Control Mode, or angles or rates of another
-                shape or not finite (nothing sent).
-            BusError: the port fails (torque off first).
-        """
-        if self.position_gains_raw is None:
-            raise InvalidConfigError(
-                "write_goals: the bus runs Current Control Mode (give position_gains_raw)"
-            )
-        q = np.asarray(q_rad, dtype=float)
-        n = len(self.ids)
-        v = np.abs(np.asarray(np.zeros(n) if profile_rad_s is None else profile_rad_s, float))
-        if (
-            q.shape != (n,)
-            or v.shape != (n,)
-            or not (np.all(np.isfinite(q)) and np.all(np.isfinite(v)))
-        ):
-            raise InvalidConfigError(f"write_goals needs {n} finite angles and rates")
-        self._require_open()
-        spec, table = self.spec, self.table
-        counts = p.rad_to_counts(q, self.zero_counts, self.directions, spec.counts_per_rev)
-        units = np.rint(v / spec.velocity_unit_rad_s)
-        if profile_rad_s is not None:
-            units = np.maximum(units, 1)
-        group = self._sdk.GroupSyncWrite(self._port, self._packets, table.profile_velocity[0], 8)
-        for i, c, u in zip(self.ids, counts, units, strict=True):
-            data = int(u).to_bytes(4, "little") + p.to_unsigned(int(c), 4).to_bytes(4, "little")
-            group.addParam(i, list(data))
-        with self.lock:
-            t0 = time.perf_counter()
-            result = group.txPacket()
-            t1 = time.perf_counter()
-        if result != self._sdk.COMM_SUCCESS:
-            self._fail(f"sync write of goals: {self._packets.getTxRxResult(result)}")
-        self.write_times.append(t1 - t0)
-        return p.counts_to_rad(counts, self.zero_counts, self.directions, spec.counts_per_rev)
-
     def timing(self) -> dict:
         """Round trips kept so far, s: {"read"|"write": {"n", "median", "p99", "max"}}."""
         out = {}
@@ -699,26 +596,3 @@ class DynamixelBus:
             self._fail(f"{what}: {self._packets.getTxRxResult(result)}")
         if error & 0x7F:
             self._fail(f"{what}: {self._packets.getRxPacketError(error)}")
-
-
-def _checked_gains(raw, spec, surrogate) -> tuple[int, int, int, int] | None:
-    """``raw`` (Position D, I, P, Feedforward 1st Gains) checked for ``spec``'s table.
-
-    Raises:
-        InvalidConfigError: four integers within the table's range are not given, or a
-            surrogate shares the bus (its stage runs Current Control Mode).
-    """
-    if raw is None:
-        return None
-    from .servo_firmware import GAIN_MAX
-
-    top = GAIN_MAX[spec.table.family]
-    values = tuple(raw)
-    if len(values) != 4 or not all(isinstance(v, int) and 0 <= v <= top for v in values):
-        raise InvalidConfigError(
-            f"position_gains_raw must be 4 integers (Position D, I, P, Feedforward 1st) in "
-            f"0..{top} for {spec.name}, got {raw!r}"
-        )
-    if surrogate is not None:
-        raise InvalidConfigError("Position Control Mode with a surrogate on the bus: not yet")
-    return values

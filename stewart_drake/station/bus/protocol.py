@@ -334,3 +334,26 @@ def to_signed(value: int, size: int) -> int:
 def to_unsigned(value: int, size: int) -> int:
     """The ``size``-byte two's complement of ``value``."""
     return int(value) & ((1 << (8 * size)) - 1)
+
+
+@dataclass(frozen=True)
+class BusState:
+    """One read of the bus; arrays (n,) in the order of the bus's ids, at the cranks.
+
+    Attributes:
+        q: crank angles, rad (zero offsets and directions applied).
+        v: crank rates, rad/s.  tau: the torques the servos drive (Present Current x K_t), N m.
+        t: perf_counter time, s, halfway through the read.  round_trip_s: the read's duration.
+        s, s_dot, s_tau: the surrogate's carriage (a bus with one,
+            :class:`~.servos.SurrogateServoConfig`): its position m, rate m/s and the
+            torque its servo drives, N m in the carriage's sense; NaN without a surrogate.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    tau: np.ndarray
+    t: float
+    round_trip_s: float
+    s: float = float("nan")
+    s_dot: float = float("nan")
+    s_tau: float = float("nan")

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -224,6 +225,78 @@ def table_position_gains(raw, spec, supply_V: float, period_s: float = 1e-3) -> 
     return PositionGains(p, i, d, ff, supply_V, period_s=period_s)
 
 
+class FirmwareLoops:
+    """The emulated servos' firmware (:class:`~.emulator.BusEmulator`'s part): each servo in
+    Position Control Mode runs a :class:`PositionFirmware` from its own control table every
+    :attr:`FIRMWARE_PERIOD_S` of the model, its PWM driving the backend's winding."""
+
+    #: The period of an emulated servo's own position loop, s (not published: ours).
+    FIRMWARE_PERIOD_S = 1e-3
+    # The emulator's own (BusEmulator.__init__ sets them): what this part reads.
+    ids: list
+    servos: dict
+    backend: Any
+    zero_counts: np.ndarray
+    _firmware: dict
+    _pwm_currents: dict
+
+    def _commands(self) -> tuple[np.ndarray, dict]:
+        """(the Goal Currents each servo drives (n,), A; {index: its position command} of the
+        servos in Position Control Mode), read from the tables (the caller holds their lock)."""
+        currents = np.array([self.servos[i].current_A() for i in self.ids])
+        commands = {
+            k: self.servos[i].position_command()
+            for k, i in enumerate(self.ids)
+            if self.servos[i].in_position_mode()
+        }
+        return currents, commands
+
+    def _advance(self, dt_s: float, currents: np.ndarray, commands: dict) -> None:
+        """Step the backend ``dt_s``: the servos in Current Control Mode at their Goal Current,
+        those in Position Control Mode (``commands``) by their own loop each firmware period."""
+        for k in list(self._firmware):
+            if k not in commands:  # its torque went off, or its mode changed: the loop restarts
+                del self._firmware[k]
+                self._pwm_currents.pop(k, None)
+        if not commands:
+            self.backend.advance(dt_s, currents)
+            return
+        steps = max(1, round(dt_s / self.FIRMWARE_PERIOD_S))
+        h = dt_s / steps
+        for _ in range(steps):
+            read = self.backend.positions_rad()
+            duty = np.zeros(len(self.ids))
+            for k, command in commands.items():
+                duty[k] = self._firmware_of(k, command, read[k]).duty(read[k : k + 1])[0]
+            drive = self.backend.pwm_currents(duty)
+            for k in commands:
+                currents[k] = self._pwm_currents[k] = float(drive[k])
+            self.backend.advance(h, currents)
+
+    def _firmware_of(self, k: int, command: tuple, read_rad: float):
+        """Servo ``k``'s position loop, made when its torque went on (from where it is) and
+        told of every new command."""
+        from .emulator_config import SUPPLY_V
+
+        spec = self.servos[self.ids[k]].spec
+        held = self._firmware.get(k)
+        if held is not None and held[1] == command:
+            return held[0]
+        goal_counts, profile_units, raw = command
+        gains = table_position_gains(raw, spec, SUPPLY_V[spec.table.family], self.FIRMWARE_PERIOD_S)
+        if held is None:
+            firmware = PositionFirmware(gains, spec.rad_per_count, [read_rad])
+        else:
+            firmware = held[0]
+            firmware.gains = gains
+        goal = (goal_counts - float(self.zero_counts[k])) * spec.rad_per_count
+        profile = None if profile_units == 0 else [profile_units * spec.velocity_unit_rad_s]
+        if held is None or held[1][:2] != command[:2]:
+            firmware.set_goal([goal], profile)
+        self._firmware[k] = (firmware, command)
+        return firmware
+
+
 __all__ = [
     "PositionGains",
     "position_gains",
@@ -232,4 +305,5 @@ __all__ = [
     "GAIN_MAX",
     "raw_position_gains",
     "table_position_gains",
+    "FirmwareLoops",
 ]

@@ -161,3 +161,39 @@ class SurrogateDrive:
             + self.kd * (w_c - w_m)
         )
         return tau, s_c
+
+
+def surrogate_settings(surrogate: SurrogateServoConfig, spec, ids, settings: dict):
+    """The surrogate's servo on the cranks' bus, after them: (its ServoSpec, its Current Limit
+    in the table's units, its settings), the settings the cranks' ``settings`` with its own
+    Current Limit and its factory position range (multi-turn in Current Control Mode: the limits
+    do not apply). Its model must be of the cranks' series (``spec``): one sync read and write
+    serve every servo.
+
+    Raises:
+        InvalidConfigError: a surrogate out of range, or a servo of another series.
+    """
+    from ..bus.servos import servo_spec
+
+    table = spec.table
+    surrogate.validate(ids, None, prefix="surrogate.")
+    s_spec = servo_spec(surrogate.model)
+    if s_spec.table != table:
+        raise InvalidConfigError(
+            f"surrogate.stage.motor {s_spec.name} keeps its items at other addresses "
+            f"than the cranks' {spec.name}: one sync read and write serve every "
+            f"servo of the bus; give the stage a servo of the {table.family} series"
+        )
+    units = s_spec.current_limit_max
+    if surrogate.current_limit_A is not None:
+        units = min(units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
+    return (
+        s_spec,
+        int(units),
+        settings
+        | {
+            "Current Limit": (table.current_limit, int(units)),
+            "Min Position Limit": (table.min_position_limit, s_spec.position_range[0]),
+            "Max Position Limit": (table.max_position_limit, s_spec.position_range[1]),
+        },
+    )
