@@ -68,7 +68,8 @@ def figures(e: np.ndarray) -> str:
 
 def emulated(scenario, args, period: float, load: int, out: str):
     """One session on the emulator: (true errors (n, 6), encoder errors (m, 6), cpu ms (k,),
-    misses, periods, breakdown lines)."""
+    misses, periods, breakdown lines); ``args.slipped_s`` set to the model time its plant
+    slipped behind the wall clock (NaN on the loop's clock)."""
     scenario.control_period_s = scenario.log_period_s = period
     emulator = _start_emulator(scenario, REST, realtime=True)
     _, sd, clock, timed = session_on_emulator(
@@ -78,8 +79,13 @@ def emulated(scenario, args, period: float, load: int, out: str):
     t_periods, _, _ = driver.readings()
     walls = _period_starts(driver)
     t_true, x_true = emulator.truth()
-    inside = (t_true >= walls[0]) & (t_true <= walls[-1])
-    t_run = np.interp(t_true[inside], walls, t_periods[: len(walls)])
+    args.slipped_s = emulator.slipped_s if emulator.period_s is None else float("nan")
+    if emulator.period_s is not None:  # the loop's clock: its times are the run's
+        inside = np.ones(len(t_true), dtype=bool)
+        t_run = t_true + t_periods[0]
+    else:
+        inside = (t_true >= walls[0]) & (t_true <= walls[-1])
+        t_run = np.interp(t_true[inside], walls, t_periods[: len(walls)])
     start = t_run[-1] - scenario.duration_s + args.skip  # the motion's start, after the lead-in
     e_true = x_true[inside, :6] - sd.trajectory.evaluate(t_run)[0]
     x_enc = driver.pose_readings()

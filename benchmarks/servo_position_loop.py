@@ -53,7 +53,7 @@ def run(scenario_name: str, settings: list[str], args) -> dict:
     from stewart_drake.robot.motor_catalogue import catalogue_motor
     from stewart_drake.run.plan import run_reference
     from stewart_drake.run.scenario_io import load_scenario
-    from stewart_drake.station.bus.emulator_config import SUPPLY_V
+    from stewart_drake.station.bus.protocol import SUPPLY_V
     from stewart_drake.station.bus.servo_firmware import PositionFirmware, position_gains
     from stewart_drake.station.bus.servo_physics import limited_duty, pwm_current
     from stewart_drake.station.bus.servos import servo_spec

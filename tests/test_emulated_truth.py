@@ -75,3 +75,39 @@ def test_the_lines_give_true_read_and_floor_per_axis_in_mrad_and_mm():
     assert "cannot see a crank within its count" in lines[-1]
     empty = truth_lines(sd, (np.zeros(0), np.zeros((0, 12))), (1.0, 2.0), floor)
     assert empty == ["the emulator's true pose: no step of its plant inside the measured window"]
+
+
+def test_on_the_loops_clock_the_truth_is_paired_on_its_own_times_not_the_wall_clock():
+    """The emulator on the loop's clock records the loop's time since its first command: the
+    truth is paired at those times (here 20 um behind on X), whatever the wall clock did; read
+    as wall-clock times it would pair nothing."""
+    sd, ramp, walls = _run()
+    t_true = np.arange(0.0, 2.99, 0.001)
+    x_true = np.zeros((t_true.size, 12))
+    x_true[:, :6] = ramp.evaluate(t_true)[0]
+    x_true[:, 3] -= 2e-5
+    e_true, _ = truth_and_reading(sd, (t_true, x_true), (1.0, 2.0), loop_clock=True)
+    assert e_true.shape[0] == pytest.approx(1000, abs=2)
+    np.testing.assert_allclose(e_true[:, 3], -2e-5, atol=1e-12)
+    on_the_wall, _ = truth_and_reading(sd, (t_true, x_true), (1.0, 2.0))
+    assert on_the_wall.shape[0] == 0
+
+
+def test_the_lines_say_the_emulators_clock_and_a_wall_clock_that_slipped():
+    sd, ramp, walls = _run()
+    t_true = np.arange(walls[0], walls[-1], 0.002)
+    x_true = np.zeros((t_true.size, 12))
+    x_true[:, :6] = ramp.evaluate(t_true - walls[0])[0]
+    floor = np.full(6, 1e-4)
+    slipped = SimpleNamespace(period_s=None, slipped_s=0.325)
+    lines = truth_lines(sd, (t_true, x_true), (1.0, 2.0), floor, slipped)
+    assert "fell 0.325 s behind the wall clock" in lines[-1]
+    assert "figures are the emulator's, not a robot's" in lines[-1]
+    kept = SimpleNamespace(period_s=None, slipped_s=0.0)
+    assert "behind" not in truth_lines(sd, (t_true, x_true), (1.0, 2.0), floor, kept)[-1]
+    loop = SimpleNamespace(period_s=0.01, slipped_s=float("nan"))
+    t_loop = t_true - walls[0]
+    lines = truth_lines(sd, (t_loop, x_true), (1.0, 2.0), floor, loop)
+    assert "on the loop's clock" in lines[-1]
+    x_line = next(line for line in lines if line.split()[:1] == ["X"])
+    assert float(x_line.split()[1]) < 1e-9  # paired on the loop's times: no error

@@ -364,6 +364,7 @@ def _start_emulator(scenario, x0, realtime: bool = False):
         surrogate=bus.surrogate,
         servos=servos,
         baud_rate=bus.baud_rate,
+        period_s=scenario.control_period_s if scenario.emulator.clock == "loop" else None,
     ).start()
     bus.port = emulator.port
     return emulator
@@ -490,4 +491,5 @@ def _truth_lines(scenario, sd, emulator, metrics) -> list[str]:
     window = metrics["window_s"]
     t = np.linspace(window[0], window[1], 50)
     centre = sd.trajectory.evaluate(t)[0].mean(axis=0)
-    return truth_lines(sd, emulator.truth(), window, quantization_floor(scenario, centre))
+    floor = quantization_floor(scenario, centre)
+    return truth_lines(sd, emulator.truth(), window, floor, emulator)

@@ -16,7 +16,7 @@ import numpy as np
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 
 
-def truth_and_reading(sd, truth, window) -> tuple[np.ndarray, np.ndarray]:
+def truth_and_reading(sd, truth, window, loop_clock: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(true errors (n, 6), encoder errors (m, 6)) over the run's ``window`` (start, end) s,
     rad and m: the emulator's plant at each of its steps against the reference at the Diagram
     time of its wall-clock time, and the pose the driver measured each period against the
@@ -28,14 +28,20 @@ def truth_and_reading(sd, truth, window) -> tuple[np.ndarray, np.ndarray]:
         truth: (t (k,) perf_counter s, x (k, 12)) of the emulator
             (:meth:`~.emulator_process.EmulatorProcess.truth`).
         window: (start, end) Diagram time, s.
+        loop_clock: the emulator on the loop's clock: ``truth``'s times are the loop's since
+            its first command, the Diagram's.
     """
     driver = sd.station.driver
     t_periods = driver.readings()[0]
-    walls = driver.timing.rows()[:, 0]
-    n = min(len(walls), len(t_periods))
     t_true, x_true = truth
-    inside = (t_true >= walls[0]) & (t_true <= walls[n - 1])
-    t_run = np.interp(t_true[inside], walls[:n], t_periods[:n])
+    if loop_clock:
+        inside = np.ones(len(t_true), dtype=bool)
+        t_run = t_true + t_periods[0]
+    else:
+        walls = driver.timing.rows()[:, 0]
+        n = min(len(walls), len(t_periods))
+        inside = (t_true >= walls[0]) & (t_true <= walls[n - 1])
+        t_run = np.interp(t_true[inside], walls[:n], t_periods[:n])
     keep = (t_run >= window[0]) & (t_run <= window[1])
     e_true = x_true[inside][keep, :6] - sd.trajectory.evaluate(t_run[keep])[0]
     read = (t_periods >= window[0]) & (t_periods <= window[1])
@@ -43,11 +49,14 @@ def truth_and_reading(sd, truth, window) -> tuple[np.ndarray, np.ndarray]:
     return e_true, e_read
 
 
-def truth_lines(sd, truth, window, floor) -> list[str]:
+def truth_lines(sd, truth, window, floor, emulator=None) -> list[str]:
     """The true and the encoders' RMS (peak) error per axis over ``window``, beside the
     encoders' floor (6,) [rad, m] (:func:`~stewart_drake.analysis.error_budget.
-    quantization_floor`), and what the encoders cannot see; mrad and mm."""
-    e_true, e_read = truth_and_reading(sd, truth, window)
+    quantization_floor`), and what the encoders cannot see; mrad and mm. With the
+    ``emulator`` (:class:`~.emulator_process.EmulatorProcess`, closed): its clock, and on the
+    wall clock how far its plant fell behind (its figures then the emulator's, not a robot's)."""
+    loop_clock = emulator is not None and emulator.period_s is not None
+    e_true, e_read = truth_and_reading(sd, truth, window, loop_clock)
     if len(e_true) == 0 or len(e_read) == 0:
         return ["the emulator's true pose: no step of its plant inside the measured window"]
 
@@ -67,4 +76,15 @@ def truth_lines(sd, truth, window, floor) -> list[str]:
         "count (the floor: half a count, uniform, through J^-1) nor what bends between the "
         "cranks and the platform (the emulated robot is rigid)"
     )
+    if loop_clock:
+        lines.append(
+            "  the emulator's plant on the loop's clock: carried one control period at each "
+            "command (emulator.clock: loop), immune to this machine's speed"
+        )
+    elif emulator is not None and emulator.slipped_s > 0:
+        lines.append(
+            f"  the emulator's plant fell {emulator.slipped_s:.3f} s behind the wall clock "
+            "(this machine could not run it in real time): its figures are the emulator's, not "
+            "a robot's; emulator.clock: loop carries it on the loop's clock instead"
+        )
     return lines

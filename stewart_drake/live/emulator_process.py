@@ -45,6 +45,7 @@ class _ChildArgs:
     surrogate: Any = None
     servos: Any = None
     baud_rate: int = 1_000_000
+    period_s: float | None = None
 
 
 def _serve(conn, made: _ChildArgs) -> None:  # pragma: no cover
@@ -187,10 +188,13 @@ def _start(made: _ChildArgs):  # pragma: no cover
             self._port = station.GetOutputPort("platform_state")
             self._context = station.GetMyContextFromRoot(self.simulator.get_context())
             self.record = RecordRows(13)
+            self.t_model = 0.0  # the loop's clock: the time the model was carried
 
         def advance(self, dt_s, current_A):
             super().advance(dt_s, current_A)
-            self.record.add(time.perf_counter(), self._port.Eval(self._context))
+            self.t_model += dt_s
+            t = time.perf_counter() if made.period_s is None else self.t_model
+            self.record.add(t, self._port.Eval(self._context))
 
     backend: ServoBackend = Recorded()
     models = None
@@ -228,6 +232,8 @@ def _start(made: _ChildArgs):  # pragma: no cover
         models=models,
         timing=timing,
         return_delay_us=0.0 if servos is None else servos.return_delay_us,
+        command_step_s=made.period_s,
+        catch_up=made.period_s is not None,
     )
 
 
@@ -255,6 +261,10 @@ class EmulatorProcess:
             (:class:`~stewart_drake.station.bus.emulator_config.EmulatedServos`, drawn by a
             scenario's ``emulator``): their drive, friction and encoders, and the bus's timing.
         baud_rate: the bus's, bps (the wire's time of each packet).
+        period_s: None (default): the plant on the wall clock. The control period, s: on the
+            loop's clock, the plant carried one period at each command up to its instant
+            (:class:`~stewart_drake.station.bus.emulator.BusEmulator`'s ``catch_up``), its
+            :meth:`truth` on the loop's time.
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after
             :meth:`close`).
@@ -276,6 +286,7 @@ class EmulatorProcess:
         surrogate=None,
         servos=None,
         baud_rate: int = 1_000_000,
+        period_s: float | None = None,
     ):
         from ..run.scenario import Scenario, dump_scenario
 
@@ -291,7 +302,10 @@ class EmulatorProcess:
             surrogate,
             servos,
             int(baud_rate),
+            None if period_s is None else float(period_s),
         )
+        #: The control period of the loop's clock, or None: the wall clock.
+        self.period_s = self._args.period_s
         self.start_timeout_s = start_timeout_s
         #: The servos behind the bus (None: the controller's own model).
         self.servos = servos
@@ -348,6 +362,7 @@ class EmulatorProcess:
         self.close()
 
     def truth(self) -> tuple[np.ndarray, np.ndarray]:
-        """(t (n,) perf_counter s, x (n, 12) the platform's true pose and rate) at every step
-        of the plant while a servo drove current (after :meth:`close`)."""
+        """(t (n,) s, x (n, 12) the platform's true pose and rate) at every step of the plant
+        while a servo drove it (after :meth:`close`): t the wall clock's (perf_counter), or on
+        the loop's clock (``period_s``) the loop's time since its first command."""
         return self._record[:, 0], self._record[:, 1:]

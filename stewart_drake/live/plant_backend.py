@@ -26,6 +26,7 @@ real time (about 3x on the development machine, holding) or the emulator's answe
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -79,6 +80,10 @@ def behind_the_bus(scenario, servos=None, **changes):
     plant.time_step = 0.002
     if servos is not None and servos.departs():
         changes = _departed(scenario, servos) | changes
+    if getattr(scenario.controller, "streams_goals", False):  # the servos' loop, not the host's
+        from ..control.servo.driver import CrankServoDriver
+
+        changes = {"controller": CrankServoDriver()} | changes
     return dataclasses.replace(
         scenario, bus=None, plant=plant, control_period_s=0.002, log_period_s=0.002, **changes
     )
@@ -162,7 +167,7 @@ class StationServos(ServoBackend):
         """The catalogue's servo driven at ``duty`` of its family's supply: ``(d V - k_e v) /
         R``, ``R`` the supply over the stall current, ``k_e`` the supply over the no-load speed
         (the catalogue's figures, as the controller believes them), A."""
-        from ..station.bus.emulator_config import SUPPLY_V
+        from ..station.bus.protocol import SUPPLY_V
 
         supply = SUPPLY_V[self.spec.table.family]
         servo = catalogue_motor(self.spec.name).servo
@@ -202,6 +207,8 @@ class RealisticServos(StationServos):
         self._rng = np.random.default_rng([servos.seed, 1])
         self._count = self.spec.rad_per_count
         self._budget = np.zeros(6)
+        self._plant_step_s = float(plant.time_step())
+        self._held_s = 0.0  # advanced since the simulator's last step, s
 
     def advance(self, dt_s, current_A):
         from ..station.bus.servo_physics import current_step, friction_budget
@@ -217,12 +224,21 @@ class RealisticServos(StationServos):
                 self._i[k], target[k], dt_s, s.current_time_constant_s, v[k], s.supply_V,
                 s.k_Nm_per_A[k], s.resistance_ohm[k], s.current_limit_A,
             )  # fmt: skip
+        # The discrete plant moves only at its steps, each under the torque and friction set
+        # by the advance that starts there: an advance within a step (a servo's 1 ms firmware
+        # on a 2 ms plant) only moves the currents and the clock (the same motion, less CPU).
+        start = self._root.get_time() + self._held_s
+        self._held_s += dt_s
+        h_p = self._plant_step_s
+        if math.ceil(start / h_p - 1e-6) * h_p >= start + dt_s - 1e-9:
+            return
         tau = s.k_Nm_per_A * self._i
         for k, actuator in enumerate(self._friction):
             self._budget[k] = friction_budget(s.friction[k], v[k], tau[k], -tau[k])
             actuator.set_effort_limit(float(self._budget[k]))
         self._torque_port.FixValue(self._root, tau)
-        self.simulator.AdvanceTo(self._root.get_time() + dt_s)
+        self.simulator.AdvanceTo(start + dt_s)
+        self._held_s = 0.0
 
     def currents_A(self) -> np.ndarray:
         """(6,) the currents the servos drive now, A (Present Current)."""
@@ -231,7 +247,7 @@ class RealisticServos(StationServos):
     def pwm_currents(self, duty):
         """Each servo as it is driven at ``duty`` of its supply (the family's where the set
         has no voltage limit): ``(d V - k v) / R`` with its own motor constant and winding, A."""
-        from ..station.bus.emulator_config import SUPPLY_V
+        from ..station.bus.protocol import SUPPLY_V
 
         s = self.servos
         supply = s.supply_V if np.isfinite(s.supply_V) else SUPPLY_V[self.spec.table.family]

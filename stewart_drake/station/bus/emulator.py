@@ -31,108 +31,11 @@ from . import protocol as p
 from .bus_timing import BusTiming
 from .servo_firmware import FirmwareLoops
 from .servo_models import FirstOrderServos, ServoBackend
-from .servos import ServoSpec, servo_spec
+from .servo_table import ServoTable
+from .servos import servo_spec
 
 #: The X series' control table size: addresses 0..146 (Present Temperature is the last used).
 TABLE_SIZE = p.X_SERIES.size
-
-
-class _Servo:
-    """One servo's control table and watchdog clock."""
-
-    def __init__(self, servo_id: int, spec: ServoSpec, ambient_C: float, return_delay_us=0.0):
-        self.id, self.spec = servo_id, spec
-        #: The family's addresses (:class:`~.protocol.ControlTable`).
-        self.items = t = spec.table
-        self.table = bytearray(t.size)
-        self.put(p.MODEL_NUMBER, spec.model_number)
-        self.put(p.FIRMWARE_VERSION, 48)
-        self.put(p.ID, servo_id)
-        self.put(
-            p.RETURN_DELAY_TIME, min(254, round(return_delay_us * 1e-6 / p.RETURN_DELAY_UNIT_S))
-        )
-        self.put(t.operating_mode, 3)  # factory: Position Control Mode
-        self.put(t.temperature_limit, 80)
-        self.put(t.current_limit, spec.current_limit_max)
-        self.put(t.min_position_limit, spec.position_range[0])
-        self.put(t.max_position_limit, spec.position_range[1])
-        self.put(t.present_temperature, int(ambient_C))
-        self.last_instruction = time.perf_counter()
-
-    def get(self, item) -> int:
-        address, size = item
-        return int.from_bytes(self.table[address : address + size], "little")
-
-    def put(self, item, value: int) -> None:
-        address, size = item
-        self.table[address : address + size] = p.to_unsigned(value, size).to_bytes(size, "little")
-
-    def return_delay_s(self) -> float:
-        """The Return Delay Time its table holds, s."""
-        return self.get(p.RETURN_DELAY_TIME) * p.RETURN_DELAY_UNIT_S
-
-    @property
-    def watchdog_tripped(self) -> bool:
-        return self.get(self.items.bus_watchdog) == p.WATCHDOG_TRIPPED
-
-    def _driving_in(self, mode: int) -> bool:
-        """Its torque on in operating ``mode``, with no watchdog trip and no hardware error."""
-        t = self.items
-        return (
-            self.get(t.torque_enable) == 1
-            and not self.watchdog_tripped
-            and not self.get(t.hardware_error_status)
-            and self.get(t.operating_mode) == mode
-        )
-
-    def current_A(self) -> float:
-        """What the servo drives: the Goal Current in Current Control Mode with the torque on,
-        no watchdog trip and no hardware error; zero otherwise."""
-        if not self._driving_in(p.CURRENT_CONTROL_MODE) or self.spec.current_unit_A is None:
-            return 0.0
-        return p.to_signed(self.get(self.items.goal_current), 2) * self.spec.current_unit_A
-
-    def in_position_mode(self) -> bool:
-        """Its own position loop drives it: Position Control Mode, the torque on, no watchdog
-        trip and no hardware error."""
-        return self._driving_in(p.POSITION_CONTROL_MODE) and bool(self.items.position_gains)
-
-    def position_command(self) -> tuple:
-        """(Goal Position counts, Profile Velocity units, the raw (D, I, P, FF1st) Gains)."""
-        t = self.items
-        return (
-            p.to_signed(self.get(t.goal_position), 4),
-            self.get(t.profile_velocity),
-            tuple(self.get(item) for item in t.position_gains),
-        )
-
-    def write(self, address: int, data: bytes) -> int:
-        """Write ``data`` at ``address``: the status error (0 if written)."""
-        t = self.items
-        end = address + len(data)
-        if end > t.size or not data:
-            return p.ERR_DATA_RANGE
-        if any(address < stop and end > start for start, stop in t.read_only):
-            return p.ERR_ACCESS
-        if address < t.eeprom_end and self.get(t.torque_enable):
-            return p.ERR_ACCESS
-        if self.watchdog_tripped and address < t.goals[1] and end > t.goals[0]:
-            return p.ERR_DATA_RANGE
-        staged = bytearray(self.table)
-        staged[address:end] = data
-        goal_at, limit_at = t.goal_current[0], t.current_limit[0]
-        if address <= goal_at < end:
-            goal = p.to_signed(int.from_bytes(staged[goal_at : goal_at + 2], "little"), 2)
-            if abs(goal) > self.get(t.current_limit):
-                return p.ERR_DATA_LIMIT
-        if address <= limit_at < end:
-            if (
-                int.from_bytes(staged[limit_at : limit_at + 2], "little")
-                > self.spec.current_limit_max
-            ):
-                return p.ERR_DATA_LIMIT
-        self.table[:] = staged
-        return 0
 
 
 class BusEmulator(FirmwareLoops):
@@ -163,6 +66,11 @@ class BusEmulator(FirmwareLoops):
             its own clock says it is. The bus watchdog still counts wall time. For tests and
             rehearsals of a loop whose period is ``command_step_s``; a real bus has no such
             mode.
+        catch_up: with ``command_step_s``, each command first carries the model the period
+            up to its own instant under the commands before it, then acts (the first command
+            carries it nowhere): a read after a command finds the robot where it is when the
+            command arrives, as on a wall clock. False (default): the model advances the period
+            under the command just written.
         timing: None (default): packets at the pseudo-terminal's memory speed. A
             :class:`~.bus_timing.BusTiming`: each instruction acts after its bytes' time on the
             wire, each reply comes after each answering servo's Return Delay Time (its control
@@ -195,6 +103,7 @@ class BusEmulator(FirmwareLoops):
         models: dict | None = None,
         timing: BusTiming | None = None,
         return_delay_us: float = 0.0,
+        catch_up: bool = False,
     ):
         ids = [int(i) for i in ids]
         if command_step_s is not None and not (0 < command_step_s < math.inf):
@@ -214,11 +123,20 @@ class BusEmulator(FirmwareLoops):
             np.full(len(ids), spec.zero_count) if zero_counts is None else np.asarray(zero_counts)
         )
         specs = {int(i): servo_spec(m, torque_control=False) for i, m in (models or {}).items()}
-        self.servos = {i: _Servo(i, specs.get(i, spec), ambient_C, return_delay_us) for i in ids}
+        self.servos = {
+            i: ServoTable(i, specs.get(i, spec), ambient_C, return_delay_us) for i in ids
+        }
         self.timing = timing
         self.tick_s = float(tick_s)
         self.max_step_s = float(max_step_s)
         self.command_step_s = None if command_step_s is None else float(command_step_s)
+        self.catch_up = bool(catch_up)
+        #: With ``catch_up``: the model's step under way (set when done), what it asks for
+        #: (currents, commands, its event) and the present values it left.
+        self._stepping: threading.Event | None = None
+        self._step_request: tuple | None = None
+        self._stepped: list = []
+        self._wake = threading.Event()  # the model thread's: a step is asked for
         #: Wall-clock time the model did not follow, s: the sum of the excess of every gap
         #: between two advances over ``max_step_s`` (0 while the model keeps real time).
         self.slipped_s = 0.0
@@ -265,6 +183,7 @@ class BusEmulator(FirmwareLoops):
     def close(self, timeout_s: float = 2.0) -> None:
         """Stop the threads (waits at most ``timeout_s`` each) and close the pty. Idempotent."""
         self._stop.set()
+        self._wake.set()
         if self._thread is not None:
             self._thread.join(timeout_s)
             if self._model_thread is not None:
@@ -409,7 +328,8 @@ class BusEmulator(FirmwareLoops):
             while not self._stop.is_set():
                 wait = self._step_model()
                 if wait > 0:
-                    self._stop.wait(wait)
+                    self._wake.wait(wait)
+                    self._wake.clear()
         except Exception as err:  # noqa: BLE001 - the servos fall silent, the error is kept
             self.model_error = f"{type(err).__name__}: {err}"
             self.muted = True
@@ -422,7 +342,15 @@ class BusEmulator(FirmwareLoops):
         (:meth:`_step_commanded`) and this only trips the watchdogs. Returns how long the
         model may wait, s."""
         if self.command_step_s is not None:
-            return self._trip_watchdogs()
+            request, self._step_request = self._step_request, None
+            if request is None:
+                return self._trip_watchdogs()
+            currents, commands, done = request
+            with self._model_lock:
+                self._advance(self.command_step_s, currents, commands)
+                self._stepped = self._present()
+            done.set()
+            return 0.0
         with self._model_lock:
             with self._lock:
                 now = time.perf_counter()
@@ -432,7 +360,7 @@ class BusEmulator(FirmwareLoops):
                 t_trip = min((t for t, _ in self._armed()), default=math.inf)
                 t_next = min(now, max(t_trip, self._t))
                 currents, commands = self._commands()
-            self._advance(t_next - self._t, currents, commands)
+            self._advance(t_next - self._t, currents, commands, self._t)
             with self._lock:
                 self._t = t_next
                 for t, servo in self._armed():  # re-read: an instruction may have come
@@ -456,8 +384,8 @@ class BusEmulator(FirmwareLoops):
         return min(self.tick_s, max(0.0, t_trip - now))
 
     def _step_commanded(self) -> None:
-        """The commanded clock: the model advances ``command_step_s`` under the currents just
-        commanded, and the present values follow (called by the bus thread, the table's lock
+        """The commanded clock: the model advances ``command_step_s`` under the commands just
+        written, and the present values follow (called by the bus thread, the table's lock
         held: the next read waits for the step)."""
         step_s = float(self.command_step_s or 0.0)  # set: only the commanded clock calls this
         currents, commands = self._commands()
@@ -474,24 +402,66 @@ class BusEmulator(FirmwareLoops):
         ]
 
     def _update_present(self) -> None:
+        self._put_present(self._present())
+
+    def _present(self) -> list:
+        """[(Present Position counts, Velocity units, Current units)] of each servo, from the
+        backend now."""
         q, v = self.backend.positions_rad(), self.backend.velocities_rad_s()
         drives = getattr(self.backend, "currents_A", None)
         currents = drives() if drives is not None else None
+        out = []
         for k, i in enumerate(self.ids):
             s = self.servos[i]
-            spec, t = s.spec, s.items
-            counts = round(float(q[k]) / spec.rad_per_count + float(self.zero_counts[k]))
-            s.put(t.present_position, int(counts))
-            s.put(t.present_velocity, round(float(v[k]) / spec.velocity_unit_rad_s))
+            spec = s.spec
             unit = spec.current_unit_A
-            i = s.current_A() if currents is None or k >= len(currents) else currents[k]
+            amps = s.current_A() if currents is None or k >= len(currents) else currents[k]
             if currents is None and k in self._pwm_currents:
-                i = self._pwm_currents[k]
-            s.put(t.present_current, round(i / unit) if unit else 0)
+                amps = self._pwm_currents[k]
+            out.append(
+                (
+                    int(round(float(q[k]) / spec.rad_per_count + float(self.zero_counts[k]))),
+                    round(float(v[k]) / spec.velocity_unit_rad_s),
+                    round(amps / unit) if unit else 0,
+                )
+            )
+        return out
+
+    def _put_present(self, values: list) -> None:
+        for (counts, velocity, current), i in zip(values, self.ids, strict=True):
+            s = self.servos[i]
+            t = s.items
+            s.put(t.present_position, counts)
+            s.put(t.present_velocity, velocity)
+            s.put(t.present_current, current)
+
+    def _catch_up(self) -> None:
+        """Before a command is written (``catch_up``; the bus thread, the tables' lock held):
+        wait for the model's step to this command's instant, begun at the command before, and
+        put where it left the robot in the tables. Bounded: a model that does not finish in
+        a second or 100 periods goes silent with the bus, as one that raises."""
+        done = self._stepping
+        if done is None:
+            return  # the first command: its instant is where the model is
+        if not done.wait(timeout=max(1.0, 100 * float(self.command_step_s or 0.0))):
+            self.model_error = "the model did not finish its step to a command in time"
+            self.muted = True
+            return
+        self._put_present(self._stepped)
+
+    def _begin_step(self) -> None:
+        """After a command is written (``catch_up``; the bus thread, the tables' lock held):
+        the model thread carries the model a period to the next command's instant under the
+        commands the tables now hold; the present values stay the command's instant's
+        meanwhile."""
+        currents, commands = self._commands()
+        self._stepping = threading.Event()
+        self._step_request = (currents, commands, self._stepping)
+        self._wake.set()
 
     # --- the protocol ------------------------------------------------------------------------
 
-    def _status(self, s: _Servo, error: int, params: bytes = b"") -> bytes:
+    def _status(self, s: ServoTable, error: int, params: bytes = b"") -> bytes:
         alert = p.ALERT if s.get(s.items.hardware_error_status) else 0
         return p.build_status(s.id, error | alert, params)
 
@@ -540,14 +510,21 @@ class BusEmulator(FirmwareLoops):
         if ins == p.SYNC_WRITE:
             address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")
             rows = par[4:]
-            for k in range(0, len(rows) - size, size + 1):
-                if rows[k] in targets:
-                    self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
             goals = {s.items.goal_current[0] for s in self.servos.values()}
             goals |= {s.items.profile_velocity[0] for s in self.servos.values()}
             goals |= {s.items.goal_position[0] for s in self.servos.values()}
-            if self.command_step_s is not None and address in goals:
-                self._step_commanded()
+            # the period's command addresses the cranks (the first servo); a surrogate's own
+            # Goal Current beside their goals does not move the commanded clock
+            addressed = {rows[k] for k in range(0, len(rows) - size, size + 1)}
+            stepped = self.command_step_s is not None and address in goals
+            stepped = stepped and self.ids[0] in addressed
+            if stepped and self.catch_up:
+                self._catch_up()
+            for k in range(0, len(rows) - size, size + 1):
+                if rows[k] in targets:
+                    self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
+            if stepped:
+                self._begin_step() if self.catch_up else self._step_commanded()
             return b""
         if ins == p.SYNC_READ:
             address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")

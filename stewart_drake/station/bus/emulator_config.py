@@ -33,6 +33,7 @@ import numpy as np
 from ...base.checks import MAX_SEED, as_number, check_int
 from ...base.errors import InvalidConfigError
 from ...robot.motor_catalogue import catalogue_motor
+from .protocol import SUPPLY_V
 from .servo_physics import FRICTION, friction_vector
 from .servos import ServoSpec
 
@@ -64,8 +65,8 @@ INL_MAX_COUNTS = {"X": 0.5 / (360 / 4096), "P": 0.0}
 #: The robot above the temperature its lengths were measured at, K (a warm room, warm
 #: motors), drawn uniform.
 TEMPERATURE_RISE_RANGE_K = (0.0, 5.0)
-#: The servos' supply, V: the X series at 12 V (the catalogue's figures), the P series at 24 V.
-SUPPLY_V = {"X": 12.0, "P": 24.0}
+#: What moves the emulator's plant (:attr:`EmulatorConfig.clock`).
+CLOCKS = ("wall", "loop")
 #: The DYNAMIXEL-P's gear train efficiency (not published; a planetary train's, estimated).
 P_EFFICIENCY = 0.7
 #: Each servo's Return Delay Time as it leaves the factory: 250 x 2 us (e-Manual, "Return
@@ -101,6 +102,13 @@ class EmulatorConfig:
         reply_jitter_us: the host's and the adapter's scheduling, added to each packet's time,
             uniform in [0, it].
         crc_error_rate, timeout_rate: the share of status packets sent corrupt, or not at all.
+        clock: what moves the emulator's plant: "wall" (default), the wall clock, as servos
+            are (its model must keep real time: one that falls behind says how far, its
+            figures then the emulator's); "loop", the control loop's commands, one control
+            period each, the model first carried to each command's instant under the commands
+            before it (:class:`~.emulator.BusEmulator`'s ``catch_up``): the motion immune to
+            the machine's speed, the loop's timing kept to the period (what a servo's 1 ms
+            firmware needs on a machine that cannot run it in real time).
     """
 
     servos: str = "realistic"
@@ -119,6 +127,7 @@ class EmulatorConfig:
     reply_jitter_us: float | None = None
     crc_error_rate: float = 0.0
     timeout_rate: float = 0.0
+    clock: str = "wall"
 
     def validate(self, prefix: str = "emulator.") -> None:
         """Check every field (named ``prefix + name``).
@@ -131,6 +140,10 @@ class EmulatorConfig:
                 f"{prefix}servos must be one of {', '.join(SERVOS)}, got {self.servos!r}"
             )
         check_int(f"{prefix}seed", self.seed, 0, MAX_SEED)
+        if self.clock not in CLOCKS:
+            raise InvalidConfigError(
+                f"{prefix}clock must be one of {', '.join(CLOCKS)}, got {self.clock!r}"
+            )
         ranges = {
             "kt_scale": (0.2, 5.0),
             "rotor_inertia_scale": (0.1, 10.0),

@@ -89,6 +89,9 @@ STATE_BLOCK = (PRESENT_CURRENT[0], 10)
 CURRENT_CONTROL_MODE = 0
 #: Position Control Mode (both families): the servo's own position loop (docs/robot.md).
 POSITION_CONTROL_MODE = 3
+#: The servos' supply by family, V: the X series at 12 V (the catalogue's figures), the P
+#: series at 24 V.
+SUPPLY_V = {"X": 12.0, "P": 24.0}
 WATCHDOG_UNIT_S = 0.020
 WATCHDOG_TRIPPED = 0xFF
 #: Counts per turn of the X-series servos' absolute encoder (on the horn, the crank's axis).

@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from ...base.checks import as_number
+from ...base.compiled import njit_cached
 
 
 @dataclass(frozen=True)
@@ -143,37 +144,72 @@ class PositionFirmware:
     def set_goal(self, goal_rad, profile_velocity_rad_s=None) -> None:
         """A new Goal Position (rad, (n,), held in whole counts) and Profile Velocity (rad/s,
         (n,); None: none, the trajectory jumps to the goal, with no velocity to feed forward)."""
-        self.goal = self._counts(goal_rad)
+        self.goal = np.ascontiguousarray(self._counts(goal_rad))
         if profile_velocity_rad_s is None:
             self._profile = np.full_like(self.goal, np.inf)
         else:
             v = np.abs(np.asarray(profile_velocity_rad_s, dtype=float))
-            self._profile = v * self.gains.period_s / self.count
+            self._profile = np.ascontiguousarray(v * self.gains.period_s / self.count)
 
     def duty(self, read_rad) -> np.ndarray:
         """(n,) the PWM duty this period, in [-1, 1], from the encoder's reading (rad, rounded
-        to whole counts)."""
-        g = self.gains
+        to whole counts). Compiled (:func:`firmware_step`): the bus emulator runs it for each
+        servo each millisecond of its model."""
+        out = np.empty(self.goal.size)
+        firmware_step(
+            self.goal, self._profile, self.trajectory, self._prev, self.v_hat, self.integral,
+            np.asarray(read_rad, dtype=float), self.count, self._gains, out,
+        )  # fmt: skip
+        return out
+
+    @property
+    def gains(self) -> PositionGains:
+        """The gains the loop runs (settable: a new table's take effect at the next period)."""
+        return self._gains_si
+
+    @gains.setter
+    def gains(self, g: PositionGains) -> None:
         h = g.period_s
-        step = np.clip(self.goal - self.trajectory, -self._profile, self._profile)
-        self.trajectory = self.trajectory + step
-        v_d = np.where(np.isinf(self._profile), 0.0, step * self.count / h)  # a jump: none
-        read = self._counts(read_rad)
-        rate = (read - self._prev) * self.count / h
-        self._prev = read
         a = 1.0 - math.exp(-h / g.velocity_filter_s) if g.velocity_filter_s > 0 else 1.0
-        self.v_hat = self.v_hat + a * (rate - self.v_hat)
-        e = (self.trajectory - read) * self.count
-        u = (
-            g.p_V_per_rad * e
-            + self.integral
-            + g.d_V_s_per_rad * (v_d - self.v_hat)
-            + g.ff_V_s_per_rad * v_d
+        self._gains_si = g
+        self._gains = np.array(
+            [g.p_V_per_rad, g.i_V_per_rad_s, g.d_V_s_per_rad, g.ff_V_s_per_rad, g.supply_V, h, a]
         )
-        grow = g.i_V_per_rad_s * e * h
-        held = ((u >= g.supply_V) & (grow > 0)) | ((u <= -g.supply_V) & (grow < 0))
-        self.integral = self.integral + np.where(held, 0.0, grow)
-        return np.clip(u / g.supply_V, -1.0, 1.0)
+
+
+@njit_cached
+def firmware_step(goal, profile, trajectory, prev, v_hat, integral, read_rad, count, gains, out):
+    """One firmware period of each servo (module docstring), its state updated in place:
+    ``trajectory``, ``prev`` (the last reading, counts), ``v_hat`` rad/s and ``integral`` V
+    (n,); ``goal`` counts and ``profile`` counts a period (inf: no profile) (n,); ``gains`` [K_P,
+    K_I, K_D, K_FF, supply V, period s, the velocity filter's share a period]; the duty into
+    ``out`` (n,)."""
+    k_p, k_i, k_d, k_ff, supply, h, a = (
+        gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6],
+    )  # fmt: skip
+    for j in range(goal.size):
+        step = min(max(goal[j] - trajectory[j], -profile[j]), profile[j])
+        trajectory[j] += step
+        v_d = 0.0 if math.isinf(profile[j]) else step * count / h  # a jump: none
+        read = np.rint(read_rad[j] / count)
+        rate = (read - prev[j]) * count / h
+        prev[j] = read
+        v_hat[j] += a * (rate - v_hat[j])
+        e = (trajectory[j] - read) * count
+        u = k_p * e + integral[j] + k_d * (v_d - v_hat[j]) + k_ff * v_d
+        grow = k_i * e * h
+        if not ((u >= supply and grow > 0) or (u <= -supply and grow < 0)):
+            integral[j] += grow
+        out[j] = min(max(u / supply, -1.0), 1.0)
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) :func:`firmware_step` with the types its callers pass."""
+    one = np.zeros(1)
+    firmware_step(
+        one, np.ones(1), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1),
+        1e-3, np.ones(7), np.zeros(1),
+    )  # fmt: skip
 
 
 #: The raw gains' divisors (X series e-Manual, "Position PID Gain": K_PD = D / 16, K_PI = I /
@@ -241,32 +277,44 @@ class FirmwareLoops:
     _pwm_currents: dict
 
     def _commands(self) -> tuple[np.ndarray, dict]:
-        """(the Goal Currents each servo drives (n,), A; {index: its position command} of the
-        servos in Position Control Mode), read from the tables (the caller holds their lock)."""
+        """(the Goal Currents each servo drives (n,), A; {index: its timed command} of the
+        servos in Position Control Mode: (command, the goal and profile before its last write,
+        that write's time), :meth:`~.servo_table.ServoTable.timed_command`), read from the
+        tables (the caller holds their lock)."""
         currents = np.array([self.servos[i].current_A() for i in self.ids])
         commands = {
-            k: self.servos[i].position_command()
+            k: self.servos[i].timed_command()
             for k, i in enumerate(self.ids)
             if self.servos[i].in_position_mode()
         }
         return currents, commands
 
-    def _advance(self, dt_s: float, currents: np.ndarray, commands: dict) -> None:
-        """Step the backend ``dt_s``: the servos in Current Control Mode at their Goal Current,
-        those in Position Control Mode (``commands``) by their own loop each firmware period."""
+    def _advance(
+        self, dt_s: float, currents: np.ndarray, commands: dict, start_t: float | None = None
+    ) -> None:
+        """Step the backend ``dt_s`` from the instant ``start_t`` (perf_counter s; None: the
+        commanded clock, every command acts from the start): the servos in Current Control Mode
+        at their Goal Current, those in Position Control Mode (``commands``) by their own loop
+        each firmware period, each on the goal it held at that period's start (a goal written
+        during the step acts from the period it arrived in, not from the step's start)."""
         for k in list(self._firmware):
             if k not in commands:  # its torque went off, or its mode changed: the loop restarts
                 del self._firmware[k]
                 self._pwm_currents.pop(k, None)
+        if dt_s <= 0.0:
+            return
         if not commands:
             self.backend.advance(dt_s, currents)
             return
         steps = max(1, round(dt_s / self.FIRMWARE_PERIOD_S))
         h = dt_s / steps
-        for _ in range(steps):
+        for j in range(steps):
             read = self.backend.positions_rad()
             duty = np.zeros(len(self.ids))
-            for k, command in commands.items():
+            now = math.inf if start_t is None else start_t + j * h
+            for k, (command, before, written_t) in commands.items():
+                if now < written_t:  # not yet arrived: the goal before it
+                    command = (*before, command[2])
                 duty[k] = self._firmware_of(k, command, read[k]).duty(read[k : k + 1])[0]
             drive = self.backend.pwm_currents(duty)
             for k in commands:
@@ -276,7 +324,7 @@ class FirmwareLoops:
     def _firmware_of(self, k: int, command: tuple, read_rad: float):
         """Servo ``k``'s position loop, made when its torque went on (from where it is) and
         told of every new command."""
-        from .emulator_config import SUPPLY_V
+        from .protocol import SUPPLY_V
 
         spec = self.servos[self.ids[k]].spec
         held = self._firmware.get(k)
@@ -306,4 +354,6 @@ __all__ = [
     "raw_position_gains",
     "table_position_gains",
     "FirmwareLoops",
+    "firmware_step",
+    "warm_up",
 ]

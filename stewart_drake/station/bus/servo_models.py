@@ -242,6 +242,26 @@ class StackedServos(ServoBackend):
     def velocities_rad_s(self):
         return np.concatenate([part.velocities_rad_s() for part in self.parts])
 
+    def pwm_currents(self, duty):
+        """Each part's servos at their duty; a part with no winding to drive (a stage in Current
+        Control Mode beside cranks in Position Control Mode, none of its duties set) zeros.
+
+        Raises:
+            InvalidConfigError: a duty set on a part with no PWM drive.
+        """
+        duty = np.asarray(duty, dtype=float)
+        out, start = [], 0
+        for part, n in zip(self.parts, self._sizes):
+            share = duty[start : start + n]
+            try:
+                out.append(np.asarray(part.pwm_currents(share), dtype=float))
+            except InvalidConfigError:
+                if np.any(share):
+                    raise
+                out.append(np.zeros(n))
+            start += n
+        return np.concatenate(out)
+
 
 __all__ = [
     "ServoBackend",
