@@ -212,7 +212,8 @@ NAN = float("nan")
         (
             "controller",
             "lqi",
-            r"controller must be an LqiDriver, CrankServoDriver, PdDriver or UserController",
+            r"controller must be an LqiDriver, CrankServoDriver, ServoPositionDriver, PdDriver or "
+            r"UserController",
         ),
         ("rod_model", "springs", r"rod_model must be one of \('bodies', 'distance'\)"),
     ],

@@ -176,3 +176,48 @@ def test_a_held_goal_gives_the_same_reading_as_the_firmware_run_by_hand():
             emulated = bus.read_state().q[0]
     assert by_hand.positions_rad()[0] > 0.09  # it moved to the goal
     assert emulated == pytest.approx(by_hand.positions_rad()[0], abs=XM430.rad_per_count)
+
+
+def test_a_surrogate_beside_cranks_in_their_own_loop_keeps_current_mode_and_its_own_write():
+    """The cranks in Position Control Mode with a surrogate's stage on the same bus: the stage
+    is configured in Current Control Mode without the cranks' position gains (read back); its
+    torque goes in a sync write of its own Goal Current (0.5 N m on the default stage's XM430:
+    round(0.5 / 1.7826 / 2.69 mA) = 104 units by hand), which does not move the commands' clock;
+    the cranks' goals do."""
+    from stewart_drake.station.bus import protocol as p
+    from stewart_drake.station.bus.emulator import BusEmulator
+    from stewart_drake.station.bus.servo_models import FirstOrderServos, StackedServos
+    from stewart_drake.station.bus.servos import SurrogateServoConfig
+
+    pytest.importorskip("dynamixel_sdk", reason="the robot extra: pip install -e '.[robot]'")
+    from stewart_drake.station.bus.driver import DynamixelBus
+
+    _, raw = _loop_gains()
+    stage = SurrogateServoConfig(id=7)
+    crank = FirstOrderServos.from_catalogue(XM430.name, [0.3], load_inertia=0.002)
+    backend = StackedServos(crank, FirstOrderServos.linear_stage(stage.stage, 0.0))
+    with BusEmulator(
+        [1, 7], XM430.name, backend=backend, command_step_s=0.01, zero_counts=[2048, 2048]
+    ) as emu:
+        bus = DynamixelBus(
+            emu.port, 1_000_000, [1], XM430.name, reply_timeout_s=HANG_BUS_S,
+            position_gains_raw=raw, watchdog_s=2.54, surrogate=stage,
+        )  # fmt: skip
+        with bus:
+            bus.configure()
+            table = XM430.table
+            assert emu.read_item(1, table.operating_mode) == p.POSITION_CONTROL_MODE
+            assert emu.read_item(7, table.operating_mode) == p.CURRENT_CONTROL_MODE
+            assert [emu.read_item(7, item) for item in table.position_gains] != list(raw)
+            bus.enable_torque()
+            before = bus.read_state()
+            bus.write_surrogate_torque(0.5)
+            after = bus.read_state()  # answered after the write is taken
+            assert p.to_signed(emu.read_item(7, table.goal_current), 2) == 104
+            assert (after.q[0], after.s) == (before.q[0], before.s)  # no step of the model
+            bus.write_goals([before.q[0] + 0.02], [2.0])
+            moved = bus.read_state()
+            assert moved.s != before.s and moved.q[0] != before.q[0]
+            with pytest.raises(InvalidConfigError, match="finite"):
+                bus.write_surrogate_torque(float("nan"))
+            bus.torque_off()

@@ -23,6 +23,9 @@ Output ports:
         tuple of k str; the LQI's are :data:`LQI_STATUS_NAMES`).
     ``e_bar`` (6,): the pose error the last update acted on (the tuner's density features).
     ``integral`` (6,): integral states (the LQI's z, eq. 23), logged.
+    ``crank_goal`` (12,): the cranks' goal angles rad and Profile Velocities rad/s streamed to
+        servos running their own position loop (a bus with ``position_loop``; ``T`` is then not
+        written).
     ``feature_window`` (12 w + 2,): with a tuner, the last w samples of [e_bar,
         motor_torque_applied] as a ring buffer [rows (w x 12, oldest at ``head``), n_valid,
         head], w = ``context.feature_window``.
@@ -58,7 +61,14 @@ INPUT_PORTS = {
     "omega": 2,
     "motor_torque_applied": 6,
 }
-OUTPUT_PORTS = {"T": 6, "status": None, "e_bar": 6, "integral": 6, "feature_window": None}
+OUTPUT_PORTS = {
+    "T": 6,
+    "status": None,
+    "e_bar": 6,
+    "integral": 6,
+    "feature_window": None,
+    "crank_goal": 12,
+}
 REQUIRED_INPUTS = ("x_d",)
 REQUIRED_OUTPUTS = ("T",)
 #: ``status`` entries of the LQI (and of controllers that report the same figures).
@@ -157,6 +167,8 @@ class ControllerDriver:
     takes_omega: ClassVar[bool | None] = None
     #: How a run's result files mark the controller (``run_<reference>...<suffix>``).
     run_suffix: ClassVar[str] = ""
+    #: Whether its ``crank_goal`` drives the servos' own position loop (``bus.position_loop``).
+    streams_goals: ClassVar[bool] = False
     #: The choice's name where a command picks it with its defaults (``run --controller NAME``,
     #: the evaluation grid); "" for a choice that needs options to mean anything.
     short_name: ClassVar[str] = ""

@@ -405,7 +405,12 @@ def controller_context(plan: RunPlan, x0, x_dot0) -> ControllerContext:
 
 def _connect_controller(builder, system, station, inputs: set, x_d, T_ff, measured) -> None:
     """The controller's inputs, connected by name as the controller contract says (``omega`` is
-    the weights' stage), and its ``T`` to the station's ``motor_torque``."""
+    the weights' stage), its ``T`` to the station's ``motor_torque`` and its ``crank_goal`` to
+    the station's (a bus in Position Control Mode has that input; the scenario pairs them).
+
+    Raises:
+        InvalidConfigError: a ``crank_goal`` on one side only.
+    """
     sources = {
         "x_d": x_d,
         "T_ff": T_ff,
@@ -417,6 +422,15 @@ def _connect_controller(builder, system, station, inputs: set, x_d, T_ff, measur
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
+    goal = system.HasOutputPort("crank_goal"), station.HasInputPort("crank_goal")
+    if goal == (True, True):
+        builder.Connect(system.GetOutputPort("crank_goal"), station.GetInputPort("crank_goal"))
+    elif any(goal):
+        raise InvalidConfigError(
+            "the controller streams crank goals but the station runs no position loop"
+            if goal[0]
+            else "the servos run their own position loop: the controller must stream crank_goal"
+        )
 
 
 def _add_measurement(

@@ -53,6 +53,7 @@ from ..control.lqi.driver import (
 )
 from ..control.pd import PdDriver
 from ..control.servo.driver import CrankServoDriver
+from ..control.servo.goal_stream import ServoPositionDriver
 from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..plant.sdf import check_rod_model
 from ..references.data_collection import DataCollectionReference
@@ -138,7 +139,7 @@ ReferenceChoice = (
     | OrganMotionReference
     | TraceReference
 )
-ControllerChoice = LqiDriver | CrankServoDriver | PdDriver | UserController
+ControllerChoice = LqiDriver | CrankServoDriver | ServoPositionDriver | PdDriver | UserController
 #: The learners a scenario may choose: from every cycle, or as a function of the reference.
 LearningChoice = IlcDriver | FeedforwardTuning
 
@@ -368,6 +369,14 @@ class Scenario:
                         f"{name} is simulated; on the servo bus the real robot meets the real "
                         f"world: set {name} to {'false' if name == 'contact' else 'null'}"
                     )
+        position_loop = self.bus is not None and self.bus.position_loop is not None
+        if position_loop != getattr(self.controller, "streams_goals", False):
+            raise InvalidConfigError(
+                "bus.position_loop runs the servos' own position loop and its controller streams "
+                "them goals: set both (controller: !ServoPositionDriver) or neither; got "
+                f"controller {type(self.controller).__name__} and bus.position_loop "
+                f"{'set' if position_loop else 'null'}"
+            )
         if self.lcm is not None:
             self.lcm.validate(self.plant.time_step)
         self.emulator.validate()

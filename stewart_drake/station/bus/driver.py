@@ -18,7 +18,6 @@ docs/hardware_bus.md.
 from __future__ import annotations
 
 import collections
-import math
 import os
 import select
 import termios
@@ -511,18 +510,9 @@ class DynamixelBus(PositionMode):
         ):
             raise InvalidConfigError(f"tau must be {len(self.ids)} finite torques, got {tau}")
         if self.surrogate is not None:
-            if not math.isfinite(surrogate_tau):
-                raise InvalidConfigError(
-                    f"the surrogate's torque must be finite, got {surrogate_tau}"
-                )
-            s_spec, limit = self.surrogate_spec, self.surrogate_limit_units
-            units = round(
-                surrogate_tau
-                * self.surrogate.direction
-                / s_spec.torque_constant_Nm_per_A
-                / s_spec.amps_per_unit
+            self._units[-1] = self.surrogate.goal_current_units(
+                self.surrogate_spec, self.surrogate_limit_units, surrogate_tau
             )
-            self._units[-1] = min(max(units, -limit), limit)
         self._kernels.fill_sync_write(self._crc_table, self._sync_write, self._units)
         with self.lock:
             t0 = time.perf_counter()

@@ -54,20 +54,20 @@ class ServoPositionLoop:
     damping: float = 1.4
     integral_ratio: float = 4.0
 
-    def validate(self, model: str, prefix: str = "bus.position_loop.") -> "ServoPositionLoop":
-        """Check the fields (named with ``prefix``) for servos of ``model``; returns self.
+    def validate(self, spec, prefix: str = "bus.position_loop.") -> "ServoPositionLoop":
+        """Check the fields (named with ``prefix``) for servos ``spec`` (a
+        :class:`~.servos.ServoSpec`); returns self.
 
         Raises:
             InvalidConfigError: a field out of range, or a model without a position loop.
         """
         from .servo_firmware import position_gains
-        from .servos import servo_spec
 
         as_number(f"{prefix}bandwidth_hz", self.bandwidth_hz, 0.0, 1e3, lo_open=True)
         as_number(f"{prefix}damping", self.damping, 0.0, 10.0, lo_open=True)
         as_number(f"{prefix}integral_ratio", self.integral_ratio, 1.0, 1e6)
-        if not servo_spec(model, torque_control=False).table.position_gains:
-            raise InvalidConfigError(f"{prefix[:-1]}: {model}'s table has no position gains")
+        if not spec.table.position_gains:
+            raise InvalidConfigError(f"{prefix[:-1]}: {spec.name}'s table has no position gains")
         try:
             position_gains(1.0, 1.0, 1.0, 1.0, self.bandwidth_hz, self.damping)
         except InvalidConfigError as err:
@@ -81,10 +81,9 @@ class ServoPositionLoop:
         Raises:
             InvalidConfigError: a gain past the table's range (a slower loop is needed).
         """
-        from .emulator_config import SUPPLY_V
         from .servo_firmware import position_gains, raw_position_gains
 
-        supply = SUPPLY_V[spec.table.family]
+        supply = p.SUPPLY_V[spec.table.family]
         gains = position_gains(
             inertia_kg_m2,
             spec.torque_constant_Nm_per_A,
@@ -125,6 +124,9 @@ class PositionMode:
     _sdk: Any
     _port: Any
     _packets: Any
+    surrogate: Any
+    surrogate_spec: Any
+    surrogate_limit_units: int
 
     def _read(self, servo_id: int, item) -> int:
         raise NotImplementedError
@@ -206,13 +208,41 @@ class PositionMode:
         self.write_times.append(t1 - t0)
         return p.counts_to_rad(counts, zero, sign, spec.counts_per_rev)
 
+    def write_surrogate_torque(self, tau_Nm: float) -> None:
+        """One sync write of the surrogate servo's Goal Current alone (it keeps Current Control
+        Mode beside cranks in their own position loop): ``tau_Nm`` at its horn in the
+        carriage's sense, clipped to its Current Limit. Sent before the period's goals: the
+        goals are the period's command (an emulator on the loop's clock moves on them).
 
-def checked_gains(raw, spec, surrogate) -> tuple[int, int, int, int] | None:
-    """``raw`` (Position D, I, P, Feedforward 1st Gains) checked for ``spec``'s table.
+        Raises:
+            InvalidConfigError: no surrogate on the bus, or a torque not finite (nothing sent).
+            BusError: the port fails (torque off first).
+        """
+        if self.surrogate is None:
+            raise InvalidConfigError("write_surrogate_torque: no surrogate on this bus")
+        units = self.surrogate.goal_current_units(
+            self.surrogate_spec, self.surrogate_limit_units, tau_Nm
+        )
+        self._require_open()
+        group = self._sdk.GroupSyncWrite(self._port, self._packets, self.table.goal_current[0], 2)
+        group.addParam(int(self.surrogate.id), list(p.to_unsigned(units, 2).to_bytes(2, "little")))
+        with self.lock:
+            t0 = time.perf_counter()
+            result = group.txPacket()
+            t1 = time.perf_counter()
+        if result != self._sdk.COMM_SUCCESS:
+            self._fail(
+                f"sync write of the surrogate's current: {self._packets.getTxRxResult(result)}"
+            )
+        self.write_times.append(t1 - t0)
+
+
+def checked_gains(raw, spec, surrogate=None) -> tuple[int, int, int, int] | None:
+    """``raw`` (Position D, I, P, Feedforward 1st Gains) checked for ``spec``'s table (a
+    surrogate on the bus keeps Current Control Mode: its own settings).
 
     Raises:
-        InvalidConfigError: four integers within the table's range are not given, or a
-            surrogate shares the bus (its stage runs Current Control Mode).
+        InvalidConfigError: four integers within the table's range are not given.
     """
     if raw is None:
         return None
@@ -225,8 +255,6 @@ def checked_gains(raw, spec, surrogate) -> tuple[int, int, int, int] | None:
             f"position_gains_raw must be 4 integers (Position D, I, P, Feedforward 1st) in "
             f"0..{top} for {spec.name}, got {raw!r}"
         )
-    if surrogate is not None:
-        raise InvalidConfigError("Position Control Mode with a surrogate on the bus: not yet")
     return values
 
 

@@ -27,6 +27,7 @@ from ...robot.motor_catalogue import catalogue_motor
 from ..hardware import Encoders, Estimator, Hardware, Motors
 from ..surrogate.linear_stage import LinearStage
 from . import protocol as p
+from .position_mode import ServoPositionLoop
 
 
 @dataclass(frozen=True)
@@ -383,6 +384,18 @@ class SurrogateServoConfig:
 
     # --- the stage's figures as the bus uses them --------------------------------------------
 
+    def goal_current_units(self, s_spec: ServoSpec, limit_units: int, tau) -> int:
+        """Its servo's Goal Current, in its table's units, for ``tau`` N m at the horn in the
+        carriage's sense: the direction applied, clipped to ``limit_units``.
+
+        Raises:
+            InvalidConfigError: ``tau`` not finite (nothing is sent).
+        """
+        if not math.isfinite(tau):
+            raise InvalidConfigError(f"the surrogate's torque must be finite, got {tau}")
+        units = tau * self.direction / s_spec.torque_constant_Nm_per_A / s_spec.amps_per_unit
+        return min(max(round(units), -limit_units), limit_units)
+
     @property
     def model(self) -> str:
         """The servo's model on the bus: the stage's motor."""
@@ -445,6 +458,9 @@ class DynamixelBusConfig:
         surrogate: the external surrogate's stage as a seventh servo on this bus
             (:class:`SurrogateServoConfig`: its id and the stage it turns);
             None (default): no surrogate, six servos.
+        position_loop: the servos' own position loop (:class:`~.position_mode.
+            ServoPositionLoop`; its controller streams goals); None (default): Current Control
+            Mode, the host's current loop.
 
     The robot as built is then the one with these servos: ``hardware: null`` is derived from
     the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
@@ -466,6 +482,7 @@ class DynamixelBusConfig:
     read_retries: int = 1
     max_deadline_misses: int = 10
     surrogate: SurrogateServoConfig | None = None
+    position_loop: ServoPositionLoop | None = None
 
     def _settings(self):
         return check_bus_settings(
@@ -506,6 +523,8 @@ class DynamixelBusConfig:
                 f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
                 f"{lo:g} to {hi:g} s"
             )
+        if self.position_loop is not None:
+            self.position_loop.validate(servo_spec(self.model, torque_control=False))
         if self.surrogate is not None:
             if not isinstance(self.surrogate, SurrogateServoConfig):
                 raise InvalidConfigError(

@@ -41,6 +41,8 @@ from ..station import PlatformPoseSensor, add_station_plant
 from ..surrogate.bus_servo import SurrogateDrive
 from .driver import DynamixelBus
 from .measured_state import MeasuredPlantState, ShowMeasured, bus_kernels
+from .position_mode import crank_inertia
+from .servos import servo_spec
 from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
@@ -62,7 +64,9 @@ class DynamixelDriver(LeafSystem):
     (docs/hardware_bus.md, "The station on the bus").
 
     Input port: ``motor_torque`` (6,): crank torques to apply, N m (clipped by the bus to the
-        servos' Current Limit).
+        servos' Current Limit); on a bus in Position Control Mode (its ``position_gains_raw``)
+        ``crank_goal`` (12,) instead: the cranks' goal angles rad (the robot's; the encoders'
+        zero errors added) and Profile Velocities rad/s, one sync write a period.
     Output ports (the held measurement): ``motor_angle`` (6,) rad; ``motor_rate`` (6,) rad/s
         (the servos' Present Velocity, 0.024 rad/s a unit); ``motor_torque_applied`` (6,) N m
         (Present Current x K_t); ``platform_state`` (12,) [pose rad, m; rates rad/s, m/s] from
@@ -117,6 +121,13 @@ class DynamixelDriver(LeafSystem):
             geometry, period_s, quantum_rad, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
+        #: In Position Control Mode (the bus's ``position_gains_raw``): the goals' port, the
+        #: cranks' angles (6) rad and Profile Velocities (6) rad/s; ``motor_torque`` unread.
+        self._goal = (
+            self.DeclareVectorInputPort("crank_goal", 12)
+            if getattr(bus, "position_gains_raw", None) is not None
+            else None
+        )
         self._kernels = bus_kernels()
         #: The period's measurement, assembled here before it is copied into the state.
         self._held, self._x_start = np.zeros(_LOOP.start), np.zeros(6)
@@ -249,13 +260,19 @@ class DynamixelDriver(LeafSystem):
         now, slept = self._wait_until(due)
         late = now - due
         cause = self.timing.begin(now, late, slept)
-        tau = self._tau.Eval(context)
+        tau = (self._tau if self._goal is None else self._goal).Eval(context)
         if not math.isfinite(tau.sum()):
             raise SimulationDivergedError(
-                f"the controller commanded non-finite torques {tau} N m; torque off", t
+                f"the controller commanded non-finite torques or goals {tau}; torque off", t
             )
         w0 = time.perf_counter()
-        if self.surrogate is None:
+        if self._goal is not None:  # the robot's angles plus the encoders' zero errors
+            s_commanded = math.nan
+            if self.surrogate is not None:  # its torque first: the goals are the period's
+                tau_s, s_commanded = self.surrogate.torque(t)
+                self.bus.write_surrogate_torque(tau_s)
+            self.bus.write_goals(tau[:6] + self.geometry.encoder_offsets, tau[6:])
+        elif self.surrogate is None:
             self.bus.write_torques(tau)
             s_commanded = math.nan
         else:  # the seventh row of the same sync write, from the same (last) reading
@@ -419,6 +436,9 @@ class HardwareStation(Diagram):
 
     Input ports:
         ``motor_torque`` (6,): crank torques, N m, written to the servos each period.
+        ``crank_goal`` (12,): with the scenario's ``bus.position_loop`` only, in place of the
+            torques: the cranks' goal angles rad and Profile Velocities rad/s written each
+            period (the servos in Position Control Mode with the loop's gains).
         ``tool_wrench`` (6,): accepted and ignored (a wrench on the real robot is applied by
             the world, not by the Diagram; the scenario refuses a ``disturbance`` with a bus).
     Output ports:
@@ -472,7 +492,11 @@ class HardwareStation(Diagram):
         self.loops_closed_by_construction = True
         self.logged_pose_lag_s = plan.control_period_s
         self.sensor = PlatformPoseSensor(plant, handles)
-        self.bus = DynamixelBus.from_config(scenario.bus)
+        loop, raw = scenario.bus.position_loop, None
+        if loop is not None:
+            spec = servo_spec(scenario.bus.model, torque_control=False)
+            raw = loop.raw_gains(spec, crank_inertia(plan.geometry, spec.name))
+        self.bus = DynamixelBus.from_config(scenario.bus, position_gains_raw=raw)
         builder = DiagramBuilder()
         surrogate = scenario.bus.surrogate
         self.driver = builder.AddNamedSystem(
@@ -491,6 +515,8 @@ class HardwareStation(Diagram):
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
         builder.Connect(command.get_output_port(), self.driver.GetInputPort("motor_torque"))
+        if raw is not None:
+            builder.ExportInput(self.driver.GetInputPort("crank_goal"), "crank_goal")
         ignored = builder.AddNamedSystem("tool_wrench", PassThrough(6))
         builder.ExportInput(ignored.get_input_port(), "tool_wrench")
         for name in ("motor_angle", "motor_rate", "motor_torque_applied", "platform_state", "loop"):

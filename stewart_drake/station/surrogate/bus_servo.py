@@ -173,6 +173,8 @@ def surrogate_settings(surrogate: SurrogateServoConfig, spec, ids, settings: dic
     Raises:
         InvalidConfigError: a surrogate out of range, or a servo of another series.
     """
+    from ..bus.position_mode import GAIN_NAMES as POSITION_GAIN_NAMES
+    from ..bus.protocol import CURRENT_CONTROL_MODE
     from ..bus.servos import servo_spec
 
     table = spec.table
@@ -187,11 +189,14 @@ def surrogate_settings(surrogate: SurrogateServoConfig, spec, ids, settings: dic
     units = s_spec.current_limit_max
     if surrogate.current_limit_A is not None:
         units = min(units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
+    own = {k: v for k, v in settings.items() if k not in POSITION_GAIN_NAMES}
     return (
         s_spec,
         int(units),
-        settings
+        own
         | {
+            # the cranks' servos may run their own position loop; the stage is torque-driven
+            "Operating Mode": (table.operating_mode, CURRENT_CONTROL_MODE),
             "Current Limit": (table.current_limit, int(units)),
             "Min Position Limit": (table.min_position_limit, s_spec.position_range[0]),
             "Max Position Limit": (table.max_position_limit, s_spec.position_range[1]),
