@@ -215,6 +215,7 @@ def _cmd_analyze(args) -> int:
     import functools
     import json
 
+    from ..base.errors import InvalidConfigError
     from ..base.fileio import atomic_write
     from ..control.lqi.driver import LqiDriver
     from ..run.scenario_io import load_scenario
@@ -229,13 +230,31 @@ def _cmd_analyze(args) -> int:
         print(
             f"{name}: the loop's margins are the LQI's linear model "
             f"(controller: !LqiDriver); this scenario's controller is a "
-            f"{type(scenario.controller).__name__}: its error budget instead"
+            f"{type(scenario.controller).__name__}: "
+            + (
+                "its error budget instead"
+                if scenario.bus is None or scenario.bus.position_loop is None
+                else "the servos' own loop's margins instead"
+            )
         )
         record: dict[str, Any] = {"scenario": name}
         robust = _crank_servo_margins(scenario)
         if robust is not None:
             print("\n".join(robust))
             record["crank_servo_margins"] = robust
+        servos_loop = _position_loop_margins(scenario)
+        if servos_loop is not None:
+            print("\n".join(servos_loop))
+            why = (
+                f"{name}'s servos run their own position loop, which the error budget's "
+                "simulation (the host's controller at the bus's period) does not hold: its "
+                "figures are the bus emulator's (python benchmarks/servo_departures.py; "
+                'docs/robot.md, "The servo\'s own loop")'
+            )
+            if args.budget is not None:
+                raise InvalidConfigError(f"--budget: {why}")
+            print(f"no error budget: {why}")
+            return 0
         return _budget(args, scenario, x0, name, out, say, record)
     say("linearizing the loop and computing the margins of the 6 axes ...")
     models = loop_models(scenario, x0, integrator=args.integrator)
@@ -292,6 +311,27 @@ def _crank_servo_margins(scenario) -> list[str] | None:
     h, d = scenario.control_period_s, 0 if hardware is None else hardware.computation_delay_periods
     loop = design_loop(h, d, servo.bandwidth_hz, servo.observer_bandwidth_hz, servo.integral_ratio)
     return margin_lines(loop)
+
+
+def _position_loop_margins(scenario) -> list[str] | None:
+    """The servos' own position loop's margins (:func:`~stewart_drake.station.bus.
+    position_margins.position_margin_lines`, on the gains the bus writes), or None without
+    ``bus.position_loop``."""
+    bus = scenario.bus
+    if bus is None or bus.position_loop is None:
+        return None
+    from ..station.bus.position_margins import position_margin_lines
+    from ..station.bus.position_mode import crank_inertia
+    from ..station.bus.protocol import SUPPLY_V
+    from ..station.bus.servo_firmware import table_position_gains
+    from ..station.bus.servos import servo_spec
+
+    spec = servo_spec(bus.model, torque_control=False)
+    inertia = crank_inertia(scenario.robot.build(), spec.name)
+    supply = SUPPLY_V[spec.table.family]
+    gains = table_position_gains(bus.position_loop.raw_gains(spec, inertia), spec, supply)
+    k = spec.torque_constant_Nm_per_A
+    return position_margin_lines(gains, inertia, k, supply / spec.stall_current_A)
 
 
 def _budget(args, scenario, x0, name: str, out: Path, say, record: dict) -> int:
