@@ -41,12 +41,12 @@ def _numbers(lines: list[str]) -> list[float]:
 
 @pytest.mark.slow
 def test_the_printout_is_what_the_paper_run_prints():
-    """The 10 s paper run on the robot as built (about 10 s of CPU) prints README's figures
-    to the digits shown with Drake 1.51, which README names; with another Drake (its SAP
-    solver), the same lines with every figure within 10 % of README's (1.58: RMS within 4 %,
-    peaks within 9 %)."""
-    from importlib.metadata import version
-
+    """The 10 s paper run on the robot as built (about 10 s of CPU) prints README's lines, every
+    figure within 10 % of README's. Not to the digits: a quantised, friction-limited loop moves
+    them with the libraries under it (the same code gave phi 0.0259 and 0.0253 mrad RMS on two
+    numpy 2.4 installs with Drake 1.51; Drake 1.58's SAP solver moves RMS figures up to 4 % and
+    peaks up to 9 %); what a wrong run changes (a controller not told of the delay: three times
+    the error, docs/hardware_figures.md) is far outside that."""
     from stewart_drake.run.metrics import format_metrics
     from stewart_drake.run.scenario_io import load_scenario
     from stewart_drake.run.simulate import run_experiment
@@ -57,12 +57,9 @@ def test_the_printout_is_what_the_paper_run_prints():
         for line in format_metrics(result.metrics).splitlines()
         if not line.startswith("real-time factor")
     ]
-    if version("drake").startswith("1.51."):
-        assert printed == _printout()
-    else:
-        shape = [" ".join(_NUMBER.sub("#", line).split()) for line in printed]
-        assert shape == [" ".join(_NUMBER.sub("#", line).split()) for line in _printout()]
-        np.testing.assert_allclose(_numbers(printed), _numbers(_printout()), rtol=0.1)
+    shape = [" ".join(_NUMBER.sub("#", line).split()) for line in printed]
+    assert shape == [" ".join(_NUMBER.sub("#", line).split()) for line in _printout()]
+    np.testing.assert_allclose(_numbers(printed), _numbers(_printout()), rtol=0.1)
 
 
 def test_the_printout_has_every_figure_line():
