@@ -68,13 +68,17 @@ def figures(e: np.ndarray) -> str:
 
 def emulated(scenario, args, period: float, load: int, out: str):
     """One session on the emulator: (true errors (n, 6), encoder errors (m, 6), cpu ms (k,),
-    misses, periods, breakdown lines); ``args.slipped_s`` set to the model time its plant
+    misses, periods, breakdown lines); ``args.end_reason`` set to why a run that did not reach
+    its end ended (None: it did), ``args.slipped_s`` to the model time its plant
     slipped behind the wall clock (NaN on the loop's clock)."""
     scenario.control_period_s = scenario.log_period_s = period
     emulator = _start_emulator(scenario, REST, realtime=True)
-    _, sd, clock, timed = session_on_emulator(
-        scenario, emulator, load, args.breakdown, out, lambda line: None, realtime=True
-    )
+    loop_clock = {} if emulator.period_s is None else {"loop_timeout_s": 2.0}  # as robot's
+    run, sd, clock, timed = session_on_emulator(
+        scenario, emulator, load, args.breakdown, out, lambda line: None, realtime=True,
+        **loop_clock,
+    )  # fmt: skip
+    args.end_reason = None if run.ok else run.reason
     driver = sd.station.driver
     t_periods, _, _ = driver.readings()
     walls = _period_starts(driver)

@@ -7,10 +7,22 @@ Each row is ``stewart-drake robot breathing --emulate``'s own session (as
 :mod:`bus_accuracy`): the true pose (the emulator's plant) and the encoders' pose against the
 reference, RMS / peak per axis over the motion after its first ``--skip`` s, whether the true
 pose's peak X stayed within 1 mm (a loop that broke into oscillation does not), the loop's
-CPU time a period (median) and its deadline misses.
+CPU time a period (median), its deadline misses, and the model time the emulator's plant
+slipped behind the wall clock (on the wall clock: a row whose plant slipped is the emulator's
+figure, not a robot's).
+
+``--loop host`` runs the host's current loop (the crank servo as the bus robots shipped it
+before the servos' own loop: 2.5 Hz, its estimator 15 Hz, integral ratio 4, friction direction
+12 Hz at share 0.5), ``--loop servo`` the servos' own position loop
+(``controller: !ServoPositionDriver`` with ``bus.position_loop``: 30 Hz, damping 1.4 on
+DYNAMIXEL-P servos; 8 Hz, damping 1.0 on the X series, whose 4096 counts a turn leave no
+table room for more: 12 Hz needs an I Gain of 35998 of its 16383), ``--loop scenario`` the
+scenario's own. ``--clock loop`` puts the emulator's plant on the loop's clock
+(``emulator.clock``), ``wall`` on the wall clock.
 
 Usage: python benchmarks/servo_departures.py [--scenario paper_bus phantom_bus] [--duration 20]
-    [--skip 8] [--rows NAME ...] [--markdown FILE]
+    [--skip 8] [--rows NAME ...] [--loop host|servo|scenario] [--clock wall|loop]
+    [--markdown FILE]
 """
 
 import argparse
@@ -62,7 +74,12 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
     args.set = []
     family = servo_spec(scenario_of(args, 0.01).bus.model, torque_control=False).table.family
     args.set = [s.replace("BACKLASH", repr(BACKLASH_MAX_RAD[family])) for s in settings]
-    scenario = scenario_of(args, 0.01)
+    if args.clock is not None:
+        args.set.append(f"emulator.clock={args.clock}")
+    # every row to its end: the misses are counted, not fatal (the emulator on the loop's clock
+    # holds a read for its step: a loaded machine's late periods are the emulator's)
+    args.set.append("bus.max_deadline_misses=1000000")
+    scenario = with_loop(scenario_of(args, 0.01), args.loop, family)
     with tempfile.TemporaryDirectory() as out:
         scenario.guard.divergence_dir = f"{out}/diverged"
         e_true, e_enc, cpu, misses, n, _ = emulated(scenario, args, 0.01, 0, out)
@@ -70,17 +87,41 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
         "true": (np.sqrt(np.mean(e_true**2, axis=0)), np.max(np.abs(e_true), axis=0)),
         "encoders": (np.sqrt(np.mean(e_enc**2, axis=0)), np.max(np.abs(e_enc), axis=0)),
         "cpu_ms": float(np.median(cpu)),
+        "slipped_s": float(args.slipped_s),
+        "end": args.end_reason,
         "misses": int(misses),
         "periods": int(n),
     }
 
 
-def markdown(scenario_name: str, rows: list[tuple[str, dict]]) -> list[str]:
+def with_loop(scenario, loop: str, family: str):
+    """``scenario`` with the host's current loop or the servos' own (module docstring)."""
+    from stewart_drake.control.servo.driver import CrankServoDriver
+    from stewart_drake.control.servo.goal_stream import ServoPositionDriver
+    from stewart_drake.station.bus.position_mode import ServoPositionLoop
+
+    if loop == "host":
+        scenario.bus.position_loop = None
+        scenario.controller = CrankServoDriver(
+            bandwidth_hz=2.5,
+            integral_ratio=4.0,
+            friction_direction_hz=12.0,
+            friction_direction_share=0.5,
+        )
+    elif loop == "servo":
+        scenario.controller = ServoPositionDriver()
+        scenario.bus.position_loop = (
+            ServoPositionLoop(30.0, 1.4) if family == "P" else ServoPositionLoop(8.0, 1.0)
+        )
+    return scenario.validate()
+
+
+def markdown(scenario_name: str, rows: list[tuple[str, dict]], loop_name: str) -> list[str]:
     """The rows as a Markdown table: RMS / peak, urad and um, true pose then encoders' X."""
     from stewart_drake.base.tables import markdown_lines
 
-    header = [f"`{scenario_name}`, breathing", *(f"{a} (true)" for a in AXES)]
-    header += ["encoders X", "peak X < 1 mm", "CPU ms", "misses"]
+    header = [f"`{scenario_name}`, {loop_name}", *(f"{a} (true)" for a in AXES)]
+    header += ["encoders X", "peak X < 1 mm", "CPU ms", "misses", "plant slipped s"]
     body = []
     for name, r in rows:
         rms, peak = r["true"]
@@ -88,7 +129,8 @@ def markdown(scenario_name: str, rows: list[tuple[str, dict]]) -> list[str]:
         stable = "yes" if peak[3] < 1e-3 else "no"
         body.append(
             [name, *cells, f"{1e6 * r['encoders'][0][3]:.0f}", stable, f"{r['cpu_ms']:.2f}",
-             f"{r['misses']} of {r['periods']}"]
+             f"{r['misses']} of {r['periods']}",
+             "loop's clock" if np.isnan(r["slipped_s"]) else f"{r['slipped_s']:.3f}"]
         )  # fmt: skip
     return markdown_lines(header, body)
 
@@ -100,6 +142,10 @@ def main() -> None:
     parser.add_argument("--skip", type=float, default=8.0, help="s of the motion not measured")
     parser.add_argument("--rows", nargs="+", default=None, help="only these rows (their names)")
     parser.add_argument("--markdown", default=None, help="also write the tables to this file")
+    parser.add_argument("--loop", choices=("host", "servo", "scenario"), default="scenario")
+    parser.add_argument(
+        "--clock", choices=("wall", "loop"), default=None, help="default: the scenario's"
+    )
     args = parser.parse_args()
     args.motion, args.param, args.breakdown = "breathing", [], False
     tables = []
@@ -112,8 +158,10 @@ def main() -> None:
             args.scenario = name
             r = row(name, settings, args)
             rows.append((label, r))
-            print(markdown(name, [(label, r)])[-1], flush=True)  # the row as it comes
-        tables += markdown(name, rows) + [""]
+            print(markdown(name, [(label, r)], args.loop)[-1], flush=True)  # as it comes
+            if r["end"] is not None:
+                print(f"  ended before its end: {r['end']}", flush=True)
+        tables += markdown(name, rows, args.loop) + [""]
     print("\n".join(tables))
     if args.markdown:
         Path(args.markdown).write_text("\n".join(tables) + "\n")

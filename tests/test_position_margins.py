@@ -105,9 +105,7 @@ def test_the_shipped_phantoms_loop_survives_what_the_catalogue_does_not_know():
     assert position_margin_lines(gains, inertia, k, r)[1].startswith("  holds")
 
 
-def test_analyze_states_the_phantoms_loop_and_refuses_a_budget_it_cannot_simulate(
-    tmp_path, capsys
-):
+def test_analyze_states_the_phantoms_loop_and_refuses_a_budget_it_cannot_simulate(tmp_path, capsys):
     """``analyze --scenario phantom_bus`` prints the servos' loop's range (the figures of the
     test above) and says why there is no error budget; asked for one, it refuses in one line."""
     from stewart_drake.cli import main as cli

@@ -125,11 +125,12 @@ def _bus_scenario(controller, loop):
 
 
 def test_the_scenario_pairs_the_servos_loop_with_the_controller_that_streams_its_goals():
-    _bus_scenario(ServoPositionDriver(), ServoPositionLoop()).validate()
+    xm430_loop = ServoPositionLoop(8.0, 1.0)  # what fits an XM430's table on this crank
+    _bus_scenario(ServoPositionDriver(), xm430_loop).validate()
     from stewart_drake.control.servo.driver import CrankServoDriver
 
     with pytest.raises(InvalidConfigError, match="bus.position_loop set"):
-        _bus_scenario(CrankServoDriver(), ServoPositionLoop()).validate()
+        _bus_scenario(CrankServoDriver(), xm430_loop).validate()
     with pytest.raises(InvalidConfigError, match="bus.position_loop null"):
         _bus_scenario(ServoPositionDriver(), None).validate()
     with pytest.raises(InvalidConfigError, match="ServoPositionDriver"):
@@ -188,3 +189,18 @@ def test_the_driver_writes_the_goals_with_the_encoders_zero_errors_and_no_torque
     for q, profile in bus.goals:
         np.testing.assert_allclose(q, theta + 0.01 + np.asarray(offsets), atol=1e-15)
         np.testing.assert_array_equal(profile, np.full(6, 0.25))
+
+
+def test_a_loop_whose_gains_do_not_fit_the_table_is_refused_when_the_scenario_is_read():
+    """paper_bus's XM430 on its crank at 12 Hz: an I Gain of K_P w / 4 over the table's unit,
+    35998 against its 16383 (the raw gains test above works such figures out), refused with
+    the field's name before anything runs; 8 Hz fits."""
+    from stewart_drake.run.scenario_io import load_scenario
+
+    scenario = load_scenario("paper_bus")
+    scenario.controller = ServoPositionDriver()
+    scenario.bus.position_loop = ServoPositionLoop(12.0, 1.0)
+    with pytest.raises(InvalidConfigError, match=r"bus.position_loop.bandwidth_hz: .* 35998 "):
+        scenario.validate()
+    scenario.bus.position_loop = ServoPositionLoop(8.0, 1.0)
+    scenario.validate()

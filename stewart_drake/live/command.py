@@ -333,14 +333,18 @@ def _check_emulated_pose(scenario, x0) -> None:
 #: whatever the emulator does (docs/hardware_bus.md, "What is emulated"): with 34 ms a busy
 #: machine's delay reads as a servo that does not answer.
 EMULATED_REPLY_TIMEOUT_S = 2.0
+#: Our watchdog's least limit for a session on the emulator on the loop's clock, s: its plant's
+#: step holds the read after each command, and a loaded machine stalls it for a second or so.
+EMULATED_LOOP_TIMEOUT_S = 2.0
 
 
 def _start_emulator(scenario, x0, realtime: bool = False):
     """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
-    the CPU of 1 ms; its servos and bus as the scenario's ``emulator`` draws them, ``servos``
-    on the process returned) behind it in a process of its own, resting at pose ``x0``, and point
-    ``scenario.bus`` at its pseudo-terminal, with a reply timeout of
-    :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
+    the CPU of 1 ms; on ``emulator.clock: loop`` the deadline misses counted and not fatal, the
+    emulator's own step holding the loop's reads; its servos and bus as the scenario's
+    ``emulator`` draws them, ``servos`` on the process returned) behind it in a process of its
+    own, resting at pose ``x0``, and point ``scenario.bus`` at its pseudo-terminal, with a reply
+    timeout of :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
     :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it). With ``realtime``
     the emulator's threads run on SCHED_FIFO one priority below the loop, off the loop's core:
     they stand in for servos, which compute on chips of their own."""
@@ -351,6 +355,8 @@ def _start_emulator(scenario, x0, realtime: bool = False):
     bus = scenario.bus
     if bus.reply_timeout_s is None:
         bus.reply_timeout_s = EMULATED_REPLY_TIMEOUT_S
+    if scenario.emulator.clock == "loop":  # a late period is the emulator's step, not a robot's
+        bus.max_deadline_misses = max(bus.max_deadline_misses, 10**9)
     servos = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
     robot = behind_the_bus(scenario, servos)
     emulator = EmulatorProcess(
@@ -386,8 +392,16 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 flush=True,
             )
             emulator = _start_emulator(scenario, args.emulate.pose, args.realtime)
+            clock = "at real time"
+            if emulator.period_s is not None:  # its step holds a read: no robot's stall
+                args.loop_timeout = max(args.loop_timeout, EMULATED_LOOP_TIMEOUT_S)
+                clock = (
+                    "on the loop's clock, a period at each command: its step's time shows as "
+                    "late bus replies, counted and not fatal, our watchdog at "
+                    f"{args.loop_timeout:g} s"
+                )
             print(
-                f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time): "
+                f"bus emulator on {scenario.bus.port} (the robot's Drake plant {clock}): "
                 f"{emulator.servos.summary()}"
             )
         if args.calibrate is not None or args.dry_run:

@@ -26,7 +26,6 @@ from pydrake.systems.primitives import (
 )
 
 from ..base.errors import InvalidConfigError
-from ..base.signals import principal_direction
 from ..control.contract import ControllerContext, LearnerContext, check_controller
 from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
@@ -41,11 +40,12 @@ from ..station.station import (
     add_white_noise,
 )
 from ..station.surrogate.axis import ExternalSignal
-from ..station.surrogate.stage import SurrogatePorts, add_surrogate_stage
+from ..station.surrogate.stage import SurrogatePorts
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_run_reference
 from .run_logs import SignalLog, add_run_logs
 from .scenario import Scenario, dump_scenario
+from .surrogate_wiring import add_surrogate
 
 #: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
 Station = StewartStation | HardwareStation
@@ -264,7 +264,7 @@ def build_diagram(
     loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    surrogate, signal = _add_surrogate(
+    surrogate, signal = add_surrogate(
         builder, plan, trajectory, meshcat, loggers, station.GetOutputPort("platform_state")
     )
     guard = add_divergence_guard(builder, station, system.GetOutputPort("T"), ref.x_d, plan)
@@ -296,77 +296,6 @@ def build_diagram(
         surrogate=surrogate,
         surrogate_signal=signal,
     )
-
-
-def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, platform=None):
-    """With the scenario's ``surrogate``, its stage beside the platform on the same clock: the
-    external signal made once from the run's reference (recorded, or through the correlation
-    model), sampled at the controller's instants (the platform's period and offset), the stage
-    added (:func:`~stewart_drake.station.surrogate.stage.add_surrogate_stage`; with
-    ``match_platform_lag`` its goal as late as the platform is on its reference, measured from
-    ``platform``, the station's pose of the platform: the plant's, read as it is at the
-    sample, where the robot reads its encoders; not the controller's estimate, which is held
-    from the previous period and would read as one period more late) and logged as
-    "surrogate" (5: [p m, v m/s, p_d m, v_d m/s, a_d m/s^2], float64, every log period).
-    Returns (the stage's ports or None, the signal or None).
-
-    Raises:
-        InvalidConfigError: a live reference (no motion known in advance to correlate with), a
-            signal the stage cannot follow (:meth:`~stewart_drake.station.surrogate.stage.
-            SurrogateStage.check_signal`).
-    """
-    axis = plan.scenario.surrogate
-    if axis is None:
-        return None, None
-    if trajectory is None:
-        raise InvalidConfigError(
-            "the surrogate follows a signal known in advance; a live reference has none: set "
-            "surrogate: null"
-        )
-    h, offset, duration = plan.control_period_s, plan.sample_offset_s, plan.duration_s
-    signal = axis.signal(trajectory, duration)
-    samples = axis.samples(signal, duration, h, offset)
-    match = None
-    if axis.match_platform_lag and platform is not None:
-        from ..station.surrogate.lag_matching import PlatformLagMatch
-
-        # Along the internal motion's principal direction, as the pair's report measures
-        # the target's delay (sync_figures.relative_latency).
-        x, v, _ = trajectory.evaluate(samples[0])
-        u = signal.direction
-        if u is None:  # not known: the principal direction of the samples
-            u = principal_direction(x)
-        match = PlatformLagMatch(h, x[:, 3:6] @ u, v[:, 3:6] @ u, u, t0=float(samples[0][0]))
-    ports = add_surrogate_stage(
-        builder,
-        axis.stage,
-        samples,
-        h,
-        offset,
-        plan.plant_time_step_s,
-        meshcat,
-        lag_match=match,
-        platform_state=platform,
-    )
-    log = SignalLog.add(
-        builder,
-        "log_surrogate",
-        {"surrogate": (_concatenated(builder, ports), np.float64)},
-        plan.log_period_s,
-        duration,
-    )
-    loggers["surrogate"] = log.logger("surrogate")
-    return ports, signal
-
-
-def _concatenated(builder, ports: SurrogatePorts) -> OutputPort:
-    """[state (2,), goal (3,)] of the stage as one port."""
-    from pydrake.systems.primitives import Multiplexer
-
-    mux = builder.AddNamedSystem("surrogate_log_mux", Multiplexer([2, 3]))
-    builder.Connect(ports.state, mux.get_input_port(0))
-    builder.Connect(ports.goal, mux.get_input_port(1))
-    return mux.get_output_port()
 
 
 def controller_context(plan: RunPlan, x0, x_dot0) -> ControllerContext:

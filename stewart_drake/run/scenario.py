@@ -377,6 +377,13 @@ class Scenario:
                 f"controller {type(self.controller).__name__} and bus.position_loop "
                 f"{'set' if position_loop else 'null'}"
             )
+        loop = None if self.bus is None else self.bus.position_loop
+        if self.bus is not None and loop is not None:  # the gains the bus writes fit its table
+            from ..station.bus.position_mode import crank_inertia
+            from ..station.bus.servos import servo_spec
+
+            spec = servo_spec(self.bus.model, torque_control=False)
+            loop.raw_gains(spec, crank_inertia(self.robot.build(), spec.name))
         if self.lcm is not None:
             self.lcm.validate(self.plant.time_step)
         self.emulator.validate()

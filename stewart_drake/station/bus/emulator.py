@@ -168,8 +168,12 @@ class BusEmulator(FirmwareLoops):
     # --- lifetime ----------------------------------------------------------------------------
 
     def start(self) -> BusEmulator:
-        """Start answering and moving (two daemon threads)."""
+        """Start answering and moving (two daemon threads), the servos' firmware compiled (or
+        loaded) first: not in the middle of a step."""
         if self._thread is None:
+            from .servo_firmware import warm_up
+
+            warm_up()
             self._thread = threading.Thread(
                 target=self._run, name="dynamixel-bus-emulator", daemon=True
             )
@@ -439,11 +443,12 @@ class BusEmulator(FirmwareLoops):
         """Before a command is written (``catch_up``; the bus thread, the tables' lock held):
         wait for the model's step to this command's instant, begun at the command before, and
         put where it left the robot in the tables. Bounded: a model that does not finish in
-        a second or 100 periods goes silent with the bus, as one that raises."""
+        30 s (a loaded machine's stall is seconds) goes silent with the bus, as one that
+        raises."""
         done = self._stepping
         if done is None:
             return  # the first command: its instant is where the model is
-        if not done.wait(timeout=max(1.0, 100 * float(self.command_step_s or 0.0))):
+        if not done.wait(timeout=30.0):
             self.model_error = "the model did not finish its step to a command in time"
             self.muted = True
             return

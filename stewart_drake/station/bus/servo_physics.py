@@ -226,6 +226,7 @@ def pendulum_rollout(t, goal, enabled, bench, servo, drive, f, h, q_out):
 def warm_up() -> None:
     """Compile (or load from the cache) every function with the types its callers pass."""
     f = friction_vector({})
+    friction_budget(f, 0.1, 0.2, -0.1)  # a drawn servo's own (writeable) vector
     f.setflags(write=False)
     friction_budget(f, 0.1, 0.2, -0.1)
     stopping_friction(0.01, 1e-3, 0.1, 0.2, 0.05)
