@@ -377,14 +377,20 @@ class BusEmulator(FirmwareLoops):
 
     def _trip_watchdogs(self) -> float:
         """The commanded clock's model thread: trip every bus watchdog whose time is up (wall
-        time, as a servo counts it). Returns how long it may wait, s."""
-        with self._lock:
+        time, as a servo counts it). Returns how long it may wait, s. Never waits for the
+        tables: a command catching up (``catch_up``) holds them until this thread has made its
+        step, so the watchdogs are looked at again a tick later."""
+        if not self._lock.acquire(blocking=False):
+            return self.tick_s
+        try:
             now = time.perf_counter()
             armed = self._armed()
             for t, servo in armed:
                 if t <= now:
                     servo.put(servo.items.bus_watchdog, p.WATCHDOG_TRIPPED)
             t_trip = min((t for t, _ in armed if t > now), default=math.inf)
+        finally:
+            self._lock.release()
         return min(self.tick_s, max(0.0, t_trip - now))
 
     def _step_commanded(self) -> None:
