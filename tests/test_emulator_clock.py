@@ -87,8 +87,10 @@ def test_a_goal_written_during_a_wall_clock_step_acts_from_the_period_it_arrived
 def test_the_model_thread_never_waits_for_the_tables_a_catching_up_command_holds():
     """A command catching up holds the tables until the model thread has made its step: the
     thread's look at the watchdogs must not wait for them (it would never make the step: the
-    emulator went silent under load), only come back a tick later. A hang is guarded by 10 s."""
+    emulator went silent under load), only come back a tick later."""
     import threading
+
+    from conftest import HANG_S
 
     from stewart_drake.station.bus.emulator import BusEmulator
 
@@ -98,7 +100,7 @@ def test_the_model_thread_never_waits_for_the_tables_a_catching_up_command_holds
     with emu._lock:  # as the bus thread holds it while a command catches up
         looker = threading.Thread(target=lambda: waits.append(emu._trip_watchdogs()))
         looker.start()
-        looker.join(timeout=10.0)
+        looker.join(timeout=HANG_S)
         assert not looker.is_alive()
     assert waits == [emu.tick_s]
     emu.close()
