@@ -117,21 +117,69 @@ def _sync_write_packet(units):
     return bytes(packet)
 
 
+class _Capture(sdk.PortHandler):
+    """A port that keeps the last packet the vendor's library sent."""
+
+    def __init__(self):
+        self.is_using, self.sent = False, b""
+
+    def clearPort(self):  # noqa: N802 - the SDK's name
+        pass
+
+    def writePort(self, packet):  # noqa: N802
+        self.sent = bytes(packet)
+        return len(packet)
+
+
+def test_the_goals_sync_write_is_the_vendors_byte_for_byte_and_stuffed_by_the_driver():
+    """Profile Velocity and Goal Position (XM430's 112 and 116, four bytes each) for six servos,
+    goals of both signs and the counts' extremes: the compiled packet is the vendor's. Values
+    whose bytes hold FF FF FD (a profile of 0xFDFFFF units, a goal of 0x7FFDFFFF counts) are
+    refused by the kernel, and the driver's rebuild, :func:`~.protocol.build_packet` of the
+    parameters the kernel wrote, is stuffed as Protocol 2.0 says: one FD more after the FF FF FD,
+    counted in the length, under its CRC, and unstuffed it is the vendor's parameters. (The
+    vendor's Python library 4.1 sends such a packet unstuffed: its ``txPacket`` drops what
+    ``addStuffing`` returns when the length grows, so its bytes are not the reference there.)"""
+    address = servos.servo_spec("XM430-W350-T").table.profile_velocity[0]
+    assert address == 112  # the e-Manual's
+    rng = np.random.default_rng(5)
+    cases = [
+        ([0] * 6, [0] * 6, True),
+        ([1, 0xFF, 0x100, 7, 0xFFFF, 2], [-1, 4095, -4096, 2048, -(2**31), 2**31 - 1], True),
+        (rng.integers(1, 2000, 6), rng.integers(-(2**20), 2**20, 6), True),
+        ([0xFDFFFF, 1, 1, 1, 1, 1], [0] * 6, False),
+        ([1] * 6, [0, 0, 0x7FFDFFFF, 0, 0, 0], False),
+    ]
+    for profile, goal, plain in cases:
+        port = _Capture()
+        group = sdk.GroupSyncWrite(port, sdk.PacketHandler(2.0), address, 8)
+        for i, u, c in zip(IDS, profile, goal):
+            data = int(u).to_bytes(4, "little") + p.to_unsigned(int(c), 4).to_bytes(4, "little")
+            group.addParam(int(i), list(data))
+        assert group.txPacket() == sdk.COMM_SUCCESS
+        params = address.to_bytes(2, "little") + (8).to_bytes(2, "little")
+        params += b"".join(bytes([i]) + bytes(8) for i in IDS)
+        packet = np.frombuffer(p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, params), np.uint8)
+        packet = packet.copy()
+        units, counts = (np.asarray(v, dtype=np.int64) for v in (profile, goal))
+        assert kernels.fill_goal_write(TABLE, packet, units, counts) is plain
+        if plain:
+            assert bytes(packet) == port.sent
+            continue
+        rebuilt = p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, packet[8:-2].tobytes())
+        assert len(rebuilt) == packet.size + 1
+        assert int.from_bytes(rebuilt[5:7], "little") == len(rebuilt) - 7
+        body = rebuilt[7:]
+        assert body.count(b"\xff\xff\xfd") == body.count(b"\xff\xff\xfd\xfd") == 1
+        parsed, used, crc_ok = p.parse_packet(rebuilt)
+        assert crc_ok and used == len(rebuilt)
+        assert bytes([parsed.instruction]) + parsed.params == port.sent[7:-2]
+
+
 def test_the_sync_write_is_the_vendors_byte_for_byte():
-    class Capture(sdk.PortHandler):
-        def __init__(self):
-            self.is_using, self.sent = False, b""
-
-        def clearPort(self):  # noqa: N802 - the SDK's name
-            pass
-
-        def writePort(self, packet):  # noqa: N802
-            self.sent = bytes(packet)
-            return len(packet)
-
     rng = np.random.default_rng(3)
     for units in ([0] * 6, [-1193, 1193, -1, 1, 0xFF, -0x100], rng.integers(-1193, 1194, 6)):
-        port = Capture()
+        port = _Capture()
         group = sdk.GroupSyncWrite(port, sdk.PacketHandler(2.0), *p.GOAL_CURRENT)
         for i, u in zip(IDS, units):
             group.addParam(int(i), list(p.to_unsigned(int(u), 2).to_bytes(2, "little")))

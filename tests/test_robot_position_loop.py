@@ -21,6 +21,21 @@ from stewart_drake.station.bus.position_mode import ServoPositionLoop  # noqa: E
 COUNT_X_M = 1.04e-6
 
 
+def _compiled_signatures() -> dict:
+    """Every signature compiled so far of the servos' loop's kernels (the goals' IK, their
+    sync write, the bus's reading)."""
+    from stewart_drake.control.servo import kernels as servo
+    from stewart_drake.station.bus import kernels as bus
+
+    dispatchers = {
+        "crank_reference": servo.crank_reference,
+        "fill_goal_write": bus.fill_goal_write,
+        "parse_status": bus.parse_status,
+        "measure_pose": bus.measure_pose,
+    }
+    return {name: list(f.signatures) for name, f in dispatchers.items()}
+
+
 def _phantom_on_its_servos_loop(duration_s: float):
     scenario = load_scenario("phantom_bus")
     scenario.controller = ServoPositionDriver()
@@ -41,7 +56,7 @@ def test_the_phantom_on_its_servos_own_loop_follows_breathing_within_tens_of_mic
     not below a count (nothing reads closer than its encoders); the truth and the encoders
     within 10 um RMS of each other (the loop's clock pairs them); every period one sync write of
     goals; torque off at the end. A goal taken without the lead (the reference's own instant)
-    would trail by 19 ms, 0.3 mm at the breath's speed."""
+    would trail by 19 ms, 0.3 mm at the breath's speed. Nothing compiled after torque on."""
     from stewart_drake.live.command import _start_emulator
     from stewart_drake.live.emulated_truth import truth_and_reading
 
@@ -57,11 +72,12 @@ def test_the_phantom_on_its_servos_own_loop_follows_breathing_within_tens_of_mic
             loop_timeout_s=10.0,
             out=tmp_path,
             say=lambda line: None,
-            before_torque=lambda sd, simulator: held.update(sd=sd),
+            before_torque=lambda sd, simulator: held.update(sd=sd, kernels=_compiled_signatures()),
         )
     finally:
         emulator.close()
     assert run.ok and run.torque_off_confirmed, run.reason
+    assert _compiled_signatures() == held["kernels"]
     sd = held["sd"]
     e_true, e_read = truth_and_reading(sd, emulator.truth(), (4.0, 9.0), loop_clock=True)
     rms_true = np.sqrt(np.mean(e_true**2, axis=0))

@@ -139,6 +139,31 @@ def test_goals_are_refused_in_current_mode_or_of_the_wrong_shape():
             position.write_goals([math.nan], [0.0])
 
 
+def test_a_goal_whose_bytes_would_form_a_header_reaches_the_servo_stuffed():
+    """A Profile Velocity of 0xFDFFFF units is the bytes FF FF FD 00: sent as they are, a servo
+    would take them for a packet's start. The driver stuffs that write (Protocol 2.0); the
+    emulated servo's table reads back the profile and the goal as written, and a goal written
+    after it is taken too (the bus still in step)."""
+    from stewart_drake.station.bus.emulator import BusEmulator
+
+    _, raw = _loop_gains()
+    table = XM430.table
+    with BusEmulator([1], XM430.name, command_step_s=0.01, zero_counts=[2048]) as emu:
+        bus = _bus(emu, raw)
+        with bus:
+            bus.configure()
+            bus.write_goals([0.25], [0xFDFFFF * XM430.velocity_unit_rad_s])
+            bus.read_state()  # answered after the write is taken
+            assert emu.read_item(1, table.profile_velocity) == 0xFDFFFF
+            assert emu.read_item(1, table.goal_position) == 2048 + round(0.25 / XM430.rad_per_count)
+            bus.write_goals([-0.25], [1.0])
+            bus.read_state()
+            assert emu.read_item(1, table.profile_velocity) == round(
+                1.0 / XM430.velocity_unit_rad_s
+            )
+            assert emu.read_item(1, table.goal_position) == 2048 - round(0.25 / XM430.rad_per_count)
+
+
 @pytest.mark.parametrize(
     "raw", [(1, 2, 3), (0, 0, 20000, 0), (0, -1, 800, 0), (0.5, 0, 800, 0)], ids=str
 )

@@ -6,8 +6,9 @@ Each servo runs its firmware's Position Control Mode at its own rate on its own 
 Each period :class:`CrankGoalStreamer` takes the reference's pose, rate and acceleration at its
 sample, carries the pose forward to when the servos will have reached the goal it sends
 (second order: ``x + v L + a L^2 / 2``), turns it into crank angles by the closed-form inverse
-kinematics, and pairs each angle with the Profile Velocity that reaches it in one period from
-the previous goal. Ours, not the paper's (the paper closes an LQI on the host; docs/paper_notes.md).
+kinematics (compiled: :func:`~.kernels.crank_reference`), and pairs each angle with the
+Profile Velocity that reaches it in one period from the previous goal. Ours, not the paper's
+(the paper closes an LQI on the host; docs/paper_notes.md).
 
 This module must not use ``from __future__ import annotations``: Drake's YAML loader reads
 :class:`ServoPositionDriver`'s field types.
@@ -22,8 +23,9 @@ from pydrake.systems.framework import BasicVector, LeafSystem
 from ...base.checks import as_number
 from ...base.errors import InvalidConfigError
 from ...robot.kinematics import ik
-from ...robot.single_pose import ik_single
+from ...robot.single_pose import leg_constants
 from ..contract import ControllerContext, ControllerDriver
+from .kernels import crank_reference
 
 
 class CrankGoalStreamer(LeafSystem):
@@ -53,10 +55,14 @@ class CrankGoalStreamer(LeafSystem):
         as_number("lead_s", lead_s, 0.0, 1.0)
         self.geometry = geometry
         self.period_s, self.lead_s = float(period_s), float(lead_s)
+        self._legs = np.array(leg_constants(geometry))
+        self._legs.setflags(write=False)  # as the kernel was compiled for
+        self._theta, self._omega = np.empty(6), np.empty(6)
         x0 = np.asarray(x_initial, dtype=float)
         v0 = np.zeros(6) if x_dot_initial is None else np.asarray(x_dot_initial, dtype=float)
-        theta_now = self._angles(x0)
-        theta_goal = self._angles(x0 + v0 * self.period_s)
+        x_d0 = np.concatenate([x0, v0, np.zeros(6)])
+        theta_now = self._angles(x_d0, 0.0).copy()
+        theta_goal = self._angles(x_d0, self.period_s)
         initial = np.concatenate([theta_goal, np.abs(theta_goal - theta_now) / self.period_s])
         self.DeclareVectorInputPort("x_d", 18)
         self._state = self.DeclareDiscreteState(BasicVector(initial))
@@ -64,17 +70,20 @@ class CrankGoalStreamer(LeafSystem):
         self.DeclareVectorOutputPort("T", 6, lambda context, out: out.SetFromVector(np.zeros(6)))
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, offset_s, self._Update)
 
-    def _angles(self, x) -> np.ndarray:
-        theta, _ = ik_single(self.geometry, x)
-        if not np.all(np.isfinite(theta)):
+    def _angles(self, x_d, lead) -> np.ndarray:
+        """(6,) crank angles, rad, of the reference ``x_d`` (18,) carried ``lead`` s forward;
+        by the compiled IK (a few microseconds: the loop's CPU a period is what bounds it)."""
+        theta, omega = self._theta, self._omega
+        if not crank_reference(self._legs, x_d, lead, theta, omega) and not np.all(
+            np.isfinite(theta)
+        ):
+            x = x_d[:6] + x_d[6:12] * lead + 0.5 * x_d[12:] * lead * lead
             ik(self.geometry, x[None, :])  # the checked inverse kinematics names the leg
         return theta
 
     def _Update(self, context, discrete_state):
         x_d = self.get_input_port(0).Eval(context)
-        lead = self.lead_s
-        x = x_d[:6] + x_d[6:12] * lead + 0.5 * x_d[12:] * lead * lead
-        theta = self._angles(x)
+        theta = self._angles(x_d, self.lead_s)
         held = discrete_state.get_mutable_vector(self._state).get_mutable_value()
         held[6:] = np.abs(theta - held[:6]) / self.period_s
         held[:6] = theta

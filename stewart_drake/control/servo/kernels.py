@@ -264,6 +264,8 @@ def warm_up() -> None:
         a.setflags(write=False)
     state = np.zeros(layout(1)["size"].stop)
     step(c, K, L, Phi, Gam, legs, M, J, np.zeros(18), np.zeros(6), np.zeros(6), state)
+    # The servos' own loop's goals (goal_stream.CrankGoalStreamer), called from Python.
+    crank_reference(legs, np.zeros(18), 0.01, np.empty(6), np.empty(6))
     # The inertia's re-schedule, which the controller calls every few periods with the robot's
     # read-only constants (statics.kernel_constants); zero legs close no leg: it returns False.
     body = np.zeros(len(path_kernels.BODY))

@@ -253,6 +253,12 @@ class DynamixelBus(PositionMode):
         self._sync_write = np.frombuffer(
             p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, params), dtype=np.uint8
         ).copy()
+        address, size = self.table.profile_velocity  # Goal Position follows: 8 bytes a servo
+        params = address.to_bytes(2, "little") + (2 * size).to_bytes(2, "little")
+        params += b"".join(bytes([i]) + bytes(2 * size) for i in self.ids)
+        self._goal_write = np.frombuffer(
+            p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, params), dtype=np.uint8
+        ).copy()
         self._crc_table = np.array(p._CRC_TABLE, dtype=np.uint16)
         self._id_array = np.array(self.all_ids, dtype=np.int64)
         for constant in (self._crc_table, self._id_array):

@@ -1,7 +1,8 @@
 """The servo-bus station's per-period arithmetic, compiled with numba: the pose from the crank
 angles and its rate (:func:`measure_pose`), the plant state assembled at that pose
-(:func:`plant_state`), and the bus's two packets of a period, the sync write of Goal Current
-built in place (:func:`fill_sync_write`) and the sync read's status packets parsed
+(:func:`plant_state`), and the bus's packets of a period, the sync write of Goal Current or, in
+the servos' own position loop, of Profile Velocity and Goal Position built in place
+(:func:`fill_sync_write`, :func:`fill_goal_write`) and the sync read's status packets parsed
 (:func:`parse_status`).
 
 Each control period the driver turns six crank angles and rates into the platform's pose and
@@ -218,6 +219,30 @@ def fill_sync_write(table, packet, units):
 
 
 @_njit
+def fill_goal_write(table, packet, profile_units, counts):
+    """The sync write of each crank's Profile Velocity ``profile_units`` (n,) int64 and Goal
+    Position ``counts`` (n,) int64 (four bytes each, contiguous, two's complement) into
+    ``packet`` (14 + 9 n,) uint8, in place: each servo's eight data bytes after its id, then the
+    CRC; the header, ids, address and length are the caller's, written once. Returns False when
+    the parameters hold the header's ``FF FF FD`` (no Goal Position within a servo's range can
+    make one), which Protocol 2.0 stuffs: the packet must then be built with stuffing."""
+    n = counts.size
+    for k in range(n):
+        base = 13 + 9 * k
+        for b in range(4):
+            packet[base + b] = (int(profile_units[k]) >> (8 * b)) & 0xFF
+            packet[base + 4 + b] = (int(counts[k]) >> (8 * b)) & 0xFF
+    end = packet.size - 2
+    for k in range(8, end - 2):
+        if packet[k] == 0xFF and packet[k + 1] == 0xFF and packet[k + 2] == 0xFD:
+            return False
+    crc = crc16(table, packet, end)
+    packet[end] = crc & 0xFF
+    packet[end + 1] = crc >> 8
+    return True
+
+
+@_njit
 def _unstuffed(buf, start, stop, out):
     """Copy ``buf[start:stop]`` into ``out`` without the byte stuffing (an ``FD`` after
     ``FF FF FD``, :func:`~.protocol.unstuff`); returns the bytes written."""
@@ -296,6 +321,8 @@ def warm_up() -> None:
     table = np.zeros(256, dtype=np.uint16)
     table.setflags(write=False)
     fill_sync_write(table, np.zeros(32, dtype=np.uint8), np.zeros(6, dtype=np.int64))
+    units, counts = np.zeros(6, dtype=np.int64), np.zeros(6, dtype=np.int64)
+    fill_goal_write(table, np.zeros(68, dtype=np.uint8), units, counts)
     n6 = np.ones(6)
     n6.setflags(write=False)
     torque_command(np.zeros(6), n6, 1.0, 1.0, 1, np.zeros(6, dtype=np.int64), np.zeros(6))

@@ -17,6 +17,7 @@ This module must not use ``from __future__ import annotations``: Drake's YAML lo
 :class:`ServoPositionLoop`'s field types.
 """
 
+import os
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -124,6 +125,10 @@ class PositionMode:
     _sdk: Any
     _port: Any
     _packets: Any
+    _fd: int
+    _kernels: Any
+    _crc_table: np.ndarray
+    _goal_write: np.ndarray  # the goals' sync write, its data filled each period
     surrogate: Any
     surrogate_spec: Any
     surrogate_limit_units: int
@@ -188,23 +193,30 @@ class PositionMode:
         ):
             raise InvalidConfigError(f"write_goals needs {n} finite angles and rates")
         self._require_open()
-        spec, table = self.spec, self.table
+        spec = self.spec
         zero, sign = self.zero_counts, self.directions
         counts = p.rad_to_counts(q, zero, sign, spec.counts_per_rev)
         units = np.rint(v / spec.velocity_unit_rad_s)
         if profile_rad_s is not None:
             units = np.maximum(units, 1)
-        sdk = self._sdk
-        group = sdk.GroupSyncWrite(self._port, self._packets, table.profile_velocity[0], 8)
-        for i, c, u in zip(self.ids, counts, units, strict=True):
-            data = int(u).to_bytes(4, "little") + p.to_unsigned(int(c), 4).to_bytes(4, "little")
-            group.addParam(i, list(data))
+        packet = self._goal_write
+        if not self._kernels.fill_goal_write(
+            self._crc_table, packet, units.astype(np.int64), counts
+        ):
+            packet = np.frombuffer(  # stuffed: a goal far outside any servo's range
+                p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, packet[8:-2].tobytes()), np.uint8
+            )
         with self.lock:
             t0 = time.perf_counter()
-            result = group.txPacket()
+            try:
+                sent = os.write(self._fd, packet.data)
+            except OSError as err:
+                self._fail(f"sync write of goals: the port failed ({err})")
             t1 = time.perf_counter()
-        if result != sdk.COMM_SUCCESS:
-            self._fail(f"sync write of goals: {self._packets.getTxRxResult(result)}")
+        if sent != packet.size:
+            self._fail(
+                f"sync write of goals: {self._packets.getTxRxResult(self._sdk.COMM_TX_FAIL)}"
+            )
         self.write_times.append(t1 - t0)
         return p.counts_to_rad(counts, zero, sign, spec.counts_per_rev)
 
