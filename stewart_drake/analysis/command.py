@@ -220,6 +220,7 @@ def _cmd_analyze(args) -> int:
     from ..control.lqi.driver import LqiDriver
     from ..run.scenario_io import load_scenario
     from .loop_analysis import axis_figures, figures_table, loop_models, plot_loop
+    from .robustness import lqi_robust_range, robust_lines
 
     scenario = load_scenario(args.scenario, args.set or ())
     x0 = _pose_option(args.pose)
@@ -268,6 +269,9 @@ def _cmd_analyze(args) -> int:
         + ("" if rho < 1 else ": the margins below describe an unstable loop")
     )
     print("\n".join(table))
+    say("the plant gains and the delay the loop survives ...")
+    survives = lqi_robust_range(scenario, x0)
+    print("\n".join(robust_lines(survives)))
     out.mkdir(parents=True, exist_ok=True)
     title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
     say("drawing the Bode and sensitivity plots of the 6 loops ...")
@@ -282,6 +286,7 @@ def _cmd_analyze(args) -> int:
         "pose": models.x0.tolist(),
         "spectral_radius": rho,
         "axes": [a.record() for a in figures],
+        "robustness": survives.record(),
     }
     if args.weights:
         record["weights"] = _weight_sweep(scenario, models, say)
@@ -299,39 +304,25 @@ def _cmd_analyze(args) -> int:
 def _crank_servo_margins(scenario) -> list[str] | None:
     """The crank servo's robust margins (:func:`~stewart_drake.control.servo.margins.
     margin_lines`), or None for another controller."""
-    from ..control.servo.design import design_loop
     from ..control.servo.driver import CrankServoDriver
     from ..control.servo.margins import margin_lines
-    from ..run.plan import as_built
+    from .robustness import crank_servo_loop
 
-    servo = scenario.controller
-    if not isinstance(servo, CrankServoDriver):
+    if not isinstance(scenario.controller, CrankServoDriver):
         return None
-    hardware = as_built(scenario).hardware
-    h, d = scenario.control_period_s, 0 if hardware is None else hardware.computation_delay_periods
-    loop = design_loop(h, d, servo.bandwidth_hz, servo.observer_bandwidth_hz, servo.integral_ratio)
-    return margin_lines(loop)
+    return margin_lines(crank_servo_loop(scenario))
 
 
 def _position_loop_margins(scenario) -> list[str] | None:
     """The servos' own position loop's margins (:func:`~stewart_drake.station.bus.
     position_margins.position_margin_lines`, on the gains the bus writes), or None without
     ``bus.position_loop``."""
-    bus = scenario.bus
-    if bus is None or bus.position_loop is None:
+    if scenario.bus is None or scenario.bus.position_loop is None:
         return None
     from ..station.bus.position_margins import position_margin_lines
-    from ..station.bus.position_mode import crank_inertia
-    from ..station.bus.protocol import SUPPLY_V
-    from ..station.bus.servo_firmware import table_position_gains
-    from ..station.bus.servos import servo_spec
+    from .robustness import position_loop_model
 
-    spec = servo_spec(bus.model, torque_control=False)
-    inertia = crank_inertia(scenario.robot.build(), spec.name)
-    supply = SUPPLY_V[spec.table.family]
-    gains = table_position_gains(bus.position_loop.raw_gains(spec, inertia), spec, supply)
-    k = spec.torque_constant_Nm_per_A
-    return position_margin_lines(gains, inertia, k, supply / spec.stall_current_A)
+    return position_margin_lines(*position_loop_model(scenario))
 
 
 def _budget(args, scenario, x0, name: str, out: Path, say, record: dict) -> int:

@@ -117,6 +117,10 @@ def _cmd_design(args) -> int:
             else f"no design meets the task (binding: {name} {margin:+.3g})"
         )
         print(f"{search.motor}: {verdict}; {search.evaluations} evaluations, {search.wall_s:.0f} s")
+    for role, record in outcome.robustness.items():
+        print(f"{role} design's loop: {record['verdict']}")
+    for role in outcome.unfit():
+        print(f"the {role} design is not recommended as it is: its loop does not hold (design.md)")
     print(f"wrote {args.out}/design.md and " + ", ".join(p.name for p in outcome.files[:-1]))
     if outcome.binding:
         print(

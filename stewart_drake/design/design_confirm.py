@@ -357,6 +357,58 @@ def _failed_row(job: MotionRun, reason: str | None) -> dict[str, Any]:
     }
 
 
+def design_robustness(design: Design, requirements: DesignRequirements, base) -> dict:
+    """What ``design``'s loop survives as the base scenario configures it on the design as built
+    (:func:`~stewart_drake.analysis.robustness.loop_robustness` at home): a plain record of
+    its :class:`~stewart_drake.control.robustness.RobustRange` with its verdict line, or
+    ``{"holds": None, "verdict": why}`` when the base's controller has no such model.
+
+    Raises:
+        InvalidConfigError, InvalidGeometryError: as :func:`design_scenario`.
+    """
+    from ..analysis.robustness import loop_robustness
+    from ..references.trajectories import NamedReference
+
+    # The loop's model is the robot's at home: any motion of the task, or none.
+    motion = requirements.motions[0] if requirements.motions else NamedReference("home")
+    scenario = design_scenario(design, requirements, motion, base)
+    robust = loop_robustness(scenario)
+    if robust is None:
+        name = type(scenario.controller).__name__
+        return {"holds": None, "verdict": f"not modelled for a {name}"}
+    return robust.record() | {"verdict": robust.verdict()}
+
+
+def robustness_lines(robustness: dict) -> list[str]:
+    """The designs' loops against what a shipped loop must survive, as a Markdown section:
+    {role: :func:`design_robustness`'s record}."""
+    from ..control.robustness import EXTRA_DELAY_S, GAIN_RANGE
+
+    def pair(r, key):
+        values = r.get(key)
+        if values is None:
+            return "-"
+        return "unstable at gain 1" if values[0] is None else f"{values[0]:.2f} to {values[1]:.2f}"
+
+    rows = [
+        [role, r.get("loop", "-"), pair(r, "gains"), pair(r, "delayed_gains"), r["verdict"]]
+        for role, r in robustness.items()
+    ]
+    header = ["design", "loop", "stable plant gains", "with the extra delay", "verdict"]
+    return [
+        "## The loop against what the catalogue does not know",
+        "",
+        f"A design is recommended only if its loop stays stable for a plant gain (true / "
+        f"believed torque per command) of {GAIN_RANGE[0]:g} to {GAIN_RANGE[1]:g} with "
+        f"{1e3 * EXTRA_DELAY_S:g} ms more delay than it was designed for (a host loop; the "
+        "servos' own loop has the bus's delay outside it): the catalogue's rotor inertia within "
+        "a factor of 2, the bus's own delay and 4 ms (stewart_drake/control/robustness.py).",
+        "",
+        markdown_table(header, rows),
+        "",
+    ]
+
+
 def load_base(base: str | Path | Scenario) -> Scenario:
     """A fresh copy of the base scenario a design is built on: loaded from a shipped name or a
     scenario file (as the CLI loads it), or copied.

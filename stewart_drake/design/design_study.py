@@ -46,6 +46,9 @@ class DesignOutcome:
         binding: when no search found a design that meets the task, the binding constraint
             ("name: margin" of the best candidate), else "".
         confirmation: {role: rows of :func:`~.design_confirm.confirm`} (empty: not run).
+        robustness: {role: :func:`~.design_confirm.design_robustness`} of the reference robot
+            and each chosen design: what its loop survives; a chosen design whose loop does not
+            hold the requirement is not recommended (:meth:`unfit`).
         files: what was written.
     """
 
@@ -54,7 +57,17 @@ class DesignOutcome:
     chosen: dict
     binding: str
     confirmation: dict = field(default_factory=dict)
+    robustness: dict = field(default_factory=dict)
     files: list = field(default_factory=list)
+
+    def unfit(self) -> dict:
+        """{role: verdict line} of the chosen designs whose loop does not hold what a shipped
+        loop must survive (or has no model to say it does)."""
+        return {
+            role: self.robustness[role]["verdict"]
+            for role in self.chosen
+            if role in self.robustness and self.robustness[role]["holds"] is not True
+        }
 
 
 def run_design(
@@ -94,7 +107,7 @@ def run_design(
             option; all before any search.
         ResultsMismatchError, FolderInUseError: ``out_dir/search`` holds another task's search.
     """
-    from .design_confirm import check_base, load_base
+    from .design_confirm import check_base, design_robustness, load_base
 
     say = say or (lambda line: None)
     requirements = load_requirements(requirements_path)
@@ -124,11 +137,15 @@ def run_design(
         name, margin = best.binding
         binding = f"{name}: margin {margin:+.3g} ({MARGINS[name]})"
     outcome = DesignOutcome(reference, searches, chosen, binding)
+    designs = {role: e.design for role, e in _columns(outcome)}
+    designs["reference"] = reference_design()
+    say("what each design's loop survives (plant gain 0.5 to 2, the extra delay)")
+    for role in ("reference", *chosen):
+        design = reference_design() if role == "reference" else chosen[role].design
+        outcome.robustness[role] = design_robustness(design, requirements, base)
     if confirm and chosen:
         from .design_confirm import confirm as run_confirm
 
-        designs = {role: e.design for role, e in _columns(outcome)}
-        designs["reference"] = reference_design()
         # A confirmation run the guard stops leaves its logs in the study's folder, wherever
         # the base scenario's guard.divergence_dir points (the scenario files keep the base's).
         diverged = str(out / "diverged")
@@ -183,6 +200,7 @@ def _write(out: Path, outcome: DesignOutcome, requirements, objective: str, base
         ],
         "binding": outcome.binding,
         "confirmation": outcome.confirmation,
+        "robustness": outcome.robustness,
     }
     text = json.dumps(document, indent=1, default=float).encode()
     atomic_write(out / "designs.json", lambda f: f.write(text))
@@ -268,6 +286,10 @@ def render_markdown(outcome: DesignOutcome, objective: str) -> str:
         )
     lines += ["## Searches", "", *markdown_lines(header, rows)]
     lines += ["", "![front](front.png)", ""]
+    if outcome.robustness:
+        from .design_confirm import robustness_lines
+
+        lines += robustness_lines(outcome.robustness)
     if outcome.confirmation:
         lines += _confirmation_table(outcome.confirmation)
     lines += [
@@ -305,6 +327,12 @@ def _verdicts(outcome: DesignOutcome, objective: str) -> list:
             f"- Cheapest motor with which a design meets the task: {c.design.motor} "
             f"({_fmt(c.figures['price_usd'])} USD for six; the design needs "
             f"{c.objective('torque_share'):.0%} of the torque it may use)."
+        )
+    for role, verdict in outcome.unfit().items():
+        lines.append(
+            f"- **The {role} design is not recommended as it is: its loop {verdict}** (a slower "
+            "loop, or the servos' own, with the same motor: `stewart-drake analyze` on its "
+            "scenario)."
         )
     if ref.feasible:
         lines.append("- The reference robot meets the task.")

@@ -14,9 +14,10 @@ of the double integrator, exact for a held command):
 
 The loop is stable when every eigenvalue lies inside the unit circle (:func:`is_stable`);
 :func:`gain_range` scans the gains about 1 that keep it so, :func:`delay_margin_s` the largest
-extra delay. The shipped bus scenarios' servos hold :data:`GAIN_RANGE` with
-:data:`EXTRA_DELAY_S` (tests/test_servo_margins.py); ``stewart-drake analyze`` states each
-scenario's (:func:`margin_lines`).
+extra delay. The shipped bus scenarios' servos hold the required
+range (:mod:`stewart_drake.control.robustness`: gain 0.5 to 2 with 6 ms more delay;
+tests/test_servo_margins.py); :func:`robust_range` is what a loop survives, and ``stewart-drake
+analyze`` states each scenario's (:func:`margin_lines`).
 """
 
 from __future__ import annotations
@@ -26,15 +27,8 @@ import math
 import numpy as np
 
 from ...base.checks import as_number
+from ..robustness import EXTRA_DELAY_S, GAIN_RANGE, RobustRange, stable_gain_range
 from .design import CrankLoop
-
-#: The plant gains a shipped crank servo must survive: the catalogue's rotor inertia is uncertain
-#: by a factor of 2 (docs/motor_catalogue.md) and a servo's torque per ampere departs from its
-#: stall ratio by as much (the gears' losses, unit to unit).
-GAIN_RANGE = (0.5, 2.0)
-#: The delay beyond the design's a shipped crank servo must survive, s: the bus's own (a sync
-#: read and its adapter, about 2 ms) and 4 ms more.
-EXTRA_DELAY_S = 6e-3
 
 
 def robust_closed_loop(loop: CrankLoop, gain: float = 1.0, extra_delay_s: float = 0.0):
@@ -92,33 +86,10 @@ def is_stable(loop: CrankLoop, gain: float = 1.0, extra_delay_s: float = 0.0) ->
 
 def gain_range(loop: CrankLoop, extra_delay_s: float = 0.0, steps: int = 400) -> tuple:
     """(lowest, highest) plant gain, about 1, for which the loop with ``extra_delay_s`` is
-    stable, scanned log-uniformly from 1/100 to 100 (``steps`` gains) and refined by bisection
-    to 0.1 %; (nan, nan) when it is unstable at gain 1."""
-    if not is_stable(loop, 1.0, extra_delay_s):
-        return (math.nan, math.nan)
-    grid = np.exp(np.linspace(math.log(0.01), math.log(100.0), steps))
-    stable = np.array([is_stable(loop, g, extra_delay_s) for g in grid])
-    one = int(np.searchsorted(grid, 1.0))
-    lo_k, hi_k = one, one - 1
-    while lo_k > 0 and stable[lo_k - 1]:
-        lo_k -= 1
-    while hi_k < steps - 1 and stable[hi_k + 1]:
-        hi_k += 1
-
-    def edge(inside: float, outside: float) -> float:
-        for _ in range(40):
-            mid = math.sqrt(inside * outside)
-            if is_stable(loop, mid, extra_delay_s):
-                inside = mid
-            else:
-                outside = mid
-            if abs(math.log(outside / inside)) < 1e-3:
-                break
-        return inside
-
-    lo = grid[0] if lo_k == 0 else edge(grid[lo_k], grid[lo_k - 1])
-    hi = grid[-1] if hi_k == steps - 1 else edge(grid[hi_k], grid[hi_k + 1])
-    return (float(lo), float(hi))
+    stable (:func:`~stewart_drake.control.robustness.stable_gain_range`: a log grid from 1/100 to
+    100 of ``steps`` gains, each edge bisected to 0.1 %); (nan, nan) when it is unstable at
+    gain 1."""
+    return stable_gain_range(lambda g: is_stable(loop, g, extra_delay_s), steps)
 
 
 def delay_margin_s(loop: CrankLoop, gain: float = 1.0, longest_s: float = 0.1) -> float:
@@ -143,27 +114,41 @@ def delay_margin_s(loop: CrankLoop, gain: float = 1.0, longest_s: float = 0.1) -
     return longest_s
 
 
-def margin_lines(loop: CrankLoop) -> list[str]:
-    """What ``analyze`` says of a crank servo's loop: its stable range of plant gain with no
-    extra delay and with :data:`EXTRA_DELAY_S`, its delay margin at gain 1 and at the range's
-    ends, and whether it holds what the shipped scenarios must (:data:`GAIN_RANGE` with
-    :data:`EXTRA_DELAY_S`)."""
-    lo0, hi0 = gain_range(loop, 0.0)
-    lo, hi = gain_range(loop, EXTRA_DELAY_S)
-    need_lo, need_hi = GAIN_RANGE
-    holds = lo <= need_lo and hi >= need_hi
-    extra_ms = 1e3 * EXTRA_DELAY_S
+def robust_range(loop: CrankLoop) -> RobustRange:
+    """What the crank servo's loop survives: its stable plant gains with no extra delay and
+    with :data:`~stewart_drake.control.robustness.EXTRA_DELAY_S`, its delay margin at gain 1
+    and at the required range's ends (in ``notes``), against
+    :data:`~stewart_drake.control.robustness.GAIN_RANGE`."""
     delays = ", ".join(
-        f"{1e3 * delay_margin_s(loop, g):.1f} ms at gain {g:g}" for g in (need_lo, 1.0, need_hi)
+        f"{1e3 * delay_margin_s(loop, g):.1f} ms at gain {g:g}"
+        for g in (GAIN_RANGE[0], 1.0, GAIN_RANGE[1])
     )
+    return RobustRange(
+        loop=(
+            f"the crank servo's loop (f_c {loop.bandwidth_hz:g} Hz, estimator "
+            f"{loop.observer_bandwidth_hz:g} Hz, {1e3 * loop.h:g} ms, {loop.delay_periods} "
+            "period(s) of delay designed for)"
+        ),
+        gains=gain_range(loop, 0.0),
+        delayed_gains=gain_range(loop, EXTRA_DELAY_S),
+        extra_delay_s=EXTRA_DELAY_S,
+        notes=(f"delay it takes beyond the design's: {delays}",),
+    )
+
+
+def margin_lines(loop: CrankLoop) -> list[str]:
+    """What ``analyze`` says of a crank servo's loop (:func:`robust_range`): its stable range of
+    plant gain with no extra delay and with the extra delay, its delay margin at gain 1 and at
+    the range's ends, and whether it holds what the shipped scenarios must."""
+    r = robust_range(loop)
+    (lo0, hi0), (lo, hi) = r.gains, r.delayed_gains
+    extra_ms = 1e3 * r.extra_delay_s
     return [
-        f"the crank servo's loop (f_c {loop.bandwidth_hz:g} Hz, estimator "
-        f"{loop.observer_bandwidth_hz:g} Hz, {1e3 * loop.h:g} ms, {loop.delay_periods} period(s) "
-        f"of delay designed for):",
+        f"{r.loop}:",
         f"  stable for a plant gain (true / believed torque per command) of {lo0:.2f} to "
         f"{hi0:.2f}; with {extra_ms:g} ms more delay, {lo:.2f} to {hi:.2f}",
-        f"  delay it takes beyond the design's: {delays}",
-        f"  {'holds' if holds else 'does NOT hold'} what a shipped servo must: gain "
-        f"{need_lo:g} to {need_hi:g} with {extra_ms:g} ms more delay (the catalogue's rotor "
-        "within a factor of 2, the bus's own delay and 4 ms)",
+        *(f"  {note}" for note in r.notes),
+        f"  {'holds' if r.holds else 'does NOT hold'} what a shipped servo must: gain "
+        f"{r.required[0]:g} to {r.required[1]:g} with {extra_ms:g} ms more delay (the "
+        "catalogue's rotor within a factor of 2, the bus's own delay and 4 ms)",
     ]

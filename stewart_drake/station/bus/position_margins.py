@@ -27,10 +27,10 @@ import numpy as np
 from scipy.linalg import expm
 
 from ...base.checks import as_number
+from ...control.robustness import GAIN_RANGE, RobustRange, stable_gain_range
 from .servo_firmware import PositionGains
 
 #: The gains a shipped position loop must survive (the crank servo's: docs/robot.md).
-GAIN_RANGE = (0.5, 2.0)
 
 
 def _hold(A: np.ndarray, B: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -112,8 +112,9 @@ def spectral_radius(*args, **kw) -> float:
 def gain_range(
     gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm, extra_delay_s=0.0, steps: int = 400
 ) -> tuple[float, float]:
-    """(lowest, highest) plant gain about 1 that keeps the loop stable, on a log grid from 0.01
-    to 100 (``steps`` points) refined by bisection; (nan, nan) when the design itself is not."""
+    """(lowest, highest) plant gain about 1 that keeps the loop stable
+    (:func:`~stewart_drake.control.robustness.stable_gain_range`: a log grid from 0.01 to 100 of
+    ``steps`` points, each edge bisected); (nan, nan) when the design itself is not."""
 
     def stable(g):
         return (
@@ -121,25 +122,7 @@ def gain_range(
             < 1.0
         )
 
-    if not stable(1.0):
-        return math.nan, math.nan
-    grid = np.exp(np.linspace(math.log(0.01), math.log(100.0), steps))
-    below, above = grid[grid < 1.0][::-1], grid[grid > 1.0]
-    ends = []
-    for side in (below, above):
-        inside = 1.0
-        for g in side:
-            if not stable(g):
-                lo, hi = inside, g
-                for _ in range(40):
-                    mid = math.sqrt(lo * hi)
-                    lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-                ends.append(lo)
-                break
-            inside = g
-        else:
-            ends.append(side[-1] if len(side) else 1.0)
-    return ends[0], ends[1]
+    return stable_gain_range(stable, steps)
 
 
 def delay_margin_s(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm, gain=1.0, longest_s=0.02):
@@ -152,21 +135,38 @@ def delay_margin_s(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm, gain=1.0, l
     return longest_s
 
 
-def position_margin_lines(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm) -> list[str]:
-    """What ``analyze`` says of a position loop: its stable plant gains, those with 1 ms more
-    delay inside the servo, the delay it survives, against :data:`GAIN_RANGE`."""
-    lo, hi = gain_range(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm)
+def position_robust_range(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm) -> RobustRange:
+    """What a position loop survives: its stable plant gains (the bus's delay is outside this
+    loop, so none is asked beyond the firmware's own), and in ``notes`` those with 1 ms more
+    delay inside the servo and the delay it survives at the design's gain."""
+    both = gain_range(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm)
     lo1, hi1 = gain_range(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm, 1e-3)
     margin = delay_margin_s(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm)
-    holds = lo <= GAIN_RANGE[0] and hi >= GAIN_RANGE[1]
+    return RobustRange(
+        loop=f"the servos' position loop ({1e3 * gains.period_s:g} ms on each servo's encoder)",
+        gains=both,
+        delayed_gains=both,
+        extra_delay_s=0.0,
+        notes=(
+            f"{lo1:.2f} to {hi1:.2f} with 1 ms more delay inside the servo; survives "
+            f"{1e3 * margin:.2f} ms of such delay at the design's gain",
+            "the bus's delay is outside this loop (a late goal lags the motion, which the "
+            "goals' lead carries)",
+        ),
+    )
+
+
+def position_margin_lines(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm) -> list[str]:
+    """What ``analyze`` says of a position loop (:func:`position_robust_range`): its stable
+    plant gains, those with 1 ms more delay inside the servo, the delay it survives, against
+    :data:`~stewart_drake.control.robustness.GAIN_RANGE`."""
+    r = position_robust_range(gains, inertia_kg_m2, k_Nm_per_A, resistance_ohm)
+    (lo, hi), (within, outside) = r.gains, r.notes
     return [
-        f"the servos' position loop ({1e3 * gains.period_s:g} ms on each servo's encoder): "
-        f"stable for a plant gain (true / believed torque per volt over inertia) of "
-        f"{lo:.2f} to {hi:.2f}, {lo1:.2f} to {hi1:.2f} with 1 ms more delay inside the servo; "
-        f"survives {1e3 * margin:.2f} ms of such delay at the design's gain",
-        f"  {'holds' if holds else 'does NOT hold'} the shipped range {GAIN_RANGE[0]:g} to "
-        f"{GAIN_RANGE[1]:g}; the bus's delay is outside this loop (a late goal lags the motion, "
-        "which the goals' lead carries)",
+        f"{r.loop}: stable for a plant gain (true / believed torque per volt over inertia) of "
+        f"{lo:.2f} to {hi:.2f}, {within}",
+        f"  {'holds' if r.holds else 'does NOT hold'} the shipped range {r.required[0]:g} to "
+        f"{r.required[1]:g}; {outside}",
     ]
 
 
@@ -177,4 +177,5 @@ __all__ = [
     "gain_range",
     "delay_margin_s",
     "position_margin_lines",
+    "position_robust_range",
 ]
