@@ -336,6 +336,56 @@ def test_the_current_lags_and_the_budget_is_set_on_the_plant(realistic_xm430):
     np.testing.assert_allclose(limits, budget, rtol=1e-6)
 
 
+def _without_friction(servos_kind: str):
+    from stewart_drake.live.plant_backend import RealisticServos, behind_the_bus, dynamixel_scenario
+    from stewart_drake.run.scenario_io import load_scenario
+
+    settings = ["emulator.seed=2", "emulator.friction_scale=0", f"emulator.servos={servos_kind}"]
+    scenario = load_scenario("paper_bus", settings)
+    servos = scenario.emulator.draw(XM430)
+    robot = dynamixel_scenario("XM430-W350-T", behind_the_bus(scenario, servos))
+    backend = RealisticServos(robot, "XM430-W350-T", np.array([0, 0, 0, 0, 0, 0.28]), servos)
+    plant = backend.station.plant
+    friction = [
+        plant.get_joint_actuator(i)
+        for i in plant.GetJointActuatorIndices()
+        if plant.get_joint_actuator(i).name().startswith("friction_")
+    ]
+    return backend, servos, friction
+
+
+def test_realistic_servos_without_friction_keep_their_gears_load_friction():
+    """``emulator.friction_scale: 0`` (the emulated budget's "without its friction") takes the
+    dry, Stribeck and viscous friction away and leaves what the gears' efficiency loses under
+    load: the friction actuators stay; after a 1 ms step of 0.3 A on five servos each of those
+    holds the load terms' (K_lm + K_lms) k i by hand, and the sixth, unloaded, none (Drake's
+    least limit, 1e-12 N m: a limit of 0 it refuses)."""
+    backend, servos, friction = _without_friction("realistic")
+    f = servos.friction
+    assert not np.any(f[:, [FRICTION["coulomb_Nm"], FRICTION["stribeck_Nm"]]])
+    assert len(friction) == 6
+    backend.advance(1e-3, np.array([0.3, 0.3, 0.3, 0.3, 0.3, 0.0]))
+    i = 0.3 * (1 - math.exp(-1e-3 / servos.current_time_constant_s))
+    loads = f[:, FRICTION["load_motor"]] + f[:, FRICTION["load_motor_stribeck"]]
+    budget = loads[:5] * servos.k_Nm_per_A[:5] * i
+    assert np.all(budget > 1e-3)
+    limits = [a.effort_limit() for a in friction]
+    np.testing.assert_allclose(limits[:5], budget, rtol=1e-6)
+    assert limits[5] == 1e-12
+
+
+def test_ideal_servos_without_friction_run_on_a_plant_without_its_actuators():
+    """The controller's own servos with ``friction_scale: 0``: no friction term at all, no
+    friction actuator on the plant, and a step of current moves every crank by more than a
+    count."""
+    backend, servos, friction = _without_friction("ideal")
+    assert not np.any(servos.friction[:, FRICTION["coulomb_Nm"]]) and friction == []
+    before = backend.positions_rad()
+    for _ in range(50):
+        backend.advance(1e-3, np.full(6, 0.5))
+    assert np.all(np.abs(backend.positions_rad() - before) > XM430.rad_per_count)
+
+
 def test_the_encoders_read_their_non_linearity_on_the_output(realistic_xm430):
     """With the noise off: each reading less the crank's true angle (and its zero error) is the
     drawn first harmonic less its value at angle 0 (where the zero was calibrated), A (sin(theta

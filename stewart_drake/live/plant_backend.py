@@ -100,11 +100,15 @@ def _departed(scenario, servos) -> dict:
         hardware = bus.hardware(scenario.control_period_s) if bus is not None else Hardware()
     base = hardware.motors.build()
     rest = servos.friction[:, FRICTION["coulomb_Nm"]] + servos.friction[:, FRICTION["stribeck_Nm"]]
+    loaded = servos.friction[:, [FRICTION["load_motor"], FRICTION["load_motor_stribeck"]]]
+    # Each step sets each servo's own budget on its friction actuator; a set whose friction acts
+    # only under load (friction_scale 0 leaves the gears' efficiency) still needs the actuators.
+    budget = float(np.max(rest)) if np.max(rest) > 0 or not np.any(loaded) else 1e-12
     servo = dataclasses.replace(
         base,
         rotor_inertia=base.rotor_inertia * servos.rotor_inertia_scale,
         viscous_damping=base.viscous_damping * servos.viscous_scale,
-        coulomb_friction_Nm=float(np.max(rest)),  # each step sets each servo's own budget
+        coulomb_friction_Nm=budget,
         backlash_rad=servos.backlash_rad,
     )
     out = {
@@ -201,8 +205,14 @@ class RealisticServos(StationServos):
         warm_up()
         self.servos = servos
         plant = self.station.plant
-        # crank k's friction actuator is "friction_k" (plant.add_stewart_plant)
-        self._friction = [plant.GetJointActuatorByName(f"friction_{k}") for k in range(6)]
+        # crank k's friction actuator is "friction_k" (plant.add_stewart_plant); a set drawn
+        # without friction (friction_scale 0) has a plant without them, and nothing to set.
+        names = [f"friction_{k}" for k in range(6)]
+        self._friction = (
+            [plant.GetJointActuatorByName(name) for name in names]
+            if plant.HasJointActuatorNamed(names[0])
+            else []
+        )
         self._i = np.zeros(6)
         self._rng = np.random.default_rng([servos.seed, 1])
         self._count = self.spec.rad_per_count
@@ -235,7 +245,9 @@ class RealisticServos(StationServos):
         tau = s.k_Nm_per_A * self._i
         for k, actuator in enumerate(self._friction):
             self._budget[k] = friction_budget(s.friction[k], v[k], tau[k], -tau[k])
-            actuator.set_effort_limit(float(self._budget[k]))
+            # Drake takes only a positive limit: 1e-12 N m is none (a servo without dry friction
+            # and without load)
+            actuator.set_effort_limit(max(float(self._budget[k]), 1e-12))
         self._torque_port.FixValue(self._root, tau)
         self.simulator.AdvanceTo(start + dt_s)
         self._held_s = 0.0
