@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from robot_loop import REST, _period_starts, session_on_emulator  # noqa: E402
 
 from stewart_drake.analysis.error_budget import quantization_floor  # noqa: E402
-from stewart_drake.live.command import _start_emulator  # noqa: E402
+from stewart_drake.live.emulator_process import start_emulator  # noqa: E402
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
@@ -72,7 +72,7 @@ def emulated(scenario, args, period: float, load: int, out: str):
     its end ended (None: it did), ``args.slipped_s`` to the model time its plant
     slipped behind the wall clock (NaN on the loop's clock)."""
     scenario.control_period_s = scenario.log_period_s = period
-    emulator = _start_emulator(scenario, REST, realtime=True)
+    emulator = start_emulator(scenario, REST, realtime=True)
     loop_clock = {} if emulator.period_s is None else {"loop_timeout_s": 2.0}  # as robot's
     run, sd, clock, timed = session_on_emulator(
         scenario, emulator, load, args.breakdown, out, lambda line: None, realtime=True,

@@ -2,8 +2,9 @@
 its CPU time a period, its deadlines, and the true pose's tracking, idle and under load.
 
 Each run is the command's own session (:func:`~stewart_drake.live.session.run_on_robot` against
-the bus emulator in its own process, :func:`~stewart_drake.live.command._start_emulator`, the
-robot's Drake plant behind it): the shipped ``paper_bus`` scenario (XM430-W350-T, omega_Q
+the bus emulator in its own process,
+:func:`~stewart_drake.live.emulator_process.start_emulator`, the robot's Drake plant behind
+it): the shipped ``paper_bus`` scenario (XM430-W350-T, omega_Q
 0.01), homed from the emulator's rest pose, then the paper manoeuvre for ``--duration`` s, at
 each ``--period``, with ``--load`` other processes (``python -c "while True: pass"``) keeping
 cores busy for the length of the run.
@@ -38,7 +39,7 @@ import time
 
 import numpy as np
 
-from stewart_drake.live.command import _start_emulator
+from stewart_drake.live.emulator_process import start_emulator
 from stewart_drake.live.session import run_on_robot
 from stewart_drake.references.trajectories import NamedReference
 from stewart_drake.run.result import load_result
@@ -172,7 +173,7 @@ def one_run(
     scenario.guard.divergence_dir = f"{out}/diverged"
     lines: list[str] = []
     kwargs = {"realtime": True} if realtime else {}
-    emulator = _start_emulator(scenario, REST, **kwargs)
+    emulator = start_emulator(scenario, REST, **kwargs)
     run, sd, clock, timed = session_on_emulator(
         scenario, emulator, load, breakdown, out, lines.append, **kwargs
     )

@@ -426,7 +426,11 @@ def test_the_robot_extra_is_checked_before_the_emulator_starts(capsys, monkeypat
         )
 
     monkeypatch.setattr(vendor_port, "dynamixel_sdk", missing)
-    monkeypatch.setattr(live_command, "_start_emulator", lambda *a: pytest.fail("emulator started"))
+    from stewart_drake.live import emulator_process
+
+    monkeypatch.setattr(
+        emulator_process, "start_emulator", lambda *a: pytest.fail("emulator started")
+    )
     assert main(["robot", "--emulate", "--dry-run"]) == 2
     err = capsys.readouterr().err
     assert "stewart-drake[robot]" in err and len(err.strip().splitlines()) == 1, err

@@ -98,12 +98,18 @@ class ErrorBudget:
     without: dict
     window_s: tuple
     assumptions: dict = field(default_factory=dict)
+    #: {source: what would lower it} (the simulated budget's :data:`SOURCES`).
+    lowers: dict = field(default_factory=lambda: dict(SOURCES))
+    #: how the true pose was had: "simulated" (:func:`error_budget`) or "emulated" (the
+    #: realistic bus emulator: :mod:`stewart_drake.live.emulated_budget`).
+    measured: str = "simulated"
 
     def dominant(self) -> tuple[str, str]:
         """(the source of the largest translation share, of the largest rotation share)."""
         names = list(self.rows)
-        tr = [float(np.linalg.norm(self.rows[n][3:])) for n in names]
-        rot = [float(np.linalg.norm(self.rows[n][:3])) for n in names]
+        # a row not measured (NaN: its run did not end) dominates nothing
+        tr = np.nan_to_num([np.linalg.norm(self.rows[n][3:]) for n in names], nan=-1.0)
+        rot = np.nan_to_num([np.linalg.norm(self.rows[n][:3]) for n in names], nan=-1.0)
         return names[int(np.argmax(tr))], names[int(np.argmax(rot))]
 
     def lines(self) -> list[str]:
@@ -111,15 +117,20 @@ class ErrorBudget:
         header = [None, *(f"{a} [{'urad' if k < 3 else 'um'}]" for k, a in enumerate(AXES))]
 
         def row(name, v, lower=""):
-            return [name, *(f"{1e6 * c:.3g}" for c in v), lower]
+            return [name, *("-" if c != c else f"{1e6 * c:.3g}" for c in v), lower]
 
-        rows = [row("**true pose**, every source (simulated)", self.total)]
-        rows += [row(f"share of {name}", v, SOURCES[name]) for name, v in self.rows.items()]
+        rows = [row(f"**true pose**, every source ({self.measured})", self.total)]
+        rows += [row(f"share of {name}", v, self.lowers[name]) for name, v in self.rows.items()]
         rows.append(row("encoders' floor (what they can know)", self.floor))
         rows.append(row("**encoder pose** (what the robot reads)", self.encoder_pose))
         out = markdown_lines([*header, "what lowers it"], rows)
         tr, rot = self.dominant()
         out.append("")
+        out += [
+            f"Not measured, {name}: {self.assumptions.get(name, 'its run did not end')}."
+            for name, v in self.rows.items()
+            if np.all(np.isnan(v))
+        ]
         out.append(f"Dominant: {tr} in translation, {rot} in rotation.")
         return out
 
@@ -133,6 +144,7 @@ class ErrorBudget:
             "without": {k: v.tolist() for k, v in self.without.items()},
             "window_s": list(self.window_s),
             "assumptions": self.assumptions,
+            "measured": self.measured,
         }
 
 

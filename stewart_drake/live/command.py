@@ -18,6 +18,7 @@ from ..execution.options import (
     is_trace_file,
     positive_float,
     say_if_compiling,
+    say_stage,
 )
 from ..execution.trace_options import TRACE_ONLY, add_trace_arguments, trace_options_given
 from .robot_options import add_drive_arguments, add_session_arguments
@@ -210,6 +211,8 @@ def _cmd_robot(args) -> int:
         # Loaded (or compiled) before anything is powered: a first load inside the first
         # control period would trip our watchdog.
         say_if_compiling("robot")
+    if args.budget:
+        return _robot_budget(args, scenario)
     with SessionSignals() as signals:  # held from the torque-off through the end line
         return _robot_session(args, scenario, out, stem, signals, surrogate)
 
@@ -327,58 +330,31 @@ def _check_emulated_pose(scenario, x0) -> None:
         ) from None
 
 
-#: The reply timeout of the emulated bus when the scenario leaves the SDK's, s. The SDK's (about
-#: 34 ms) is a USB adapter's latency timer; the emulator's pseudo-terminal passes each packet
-#: through the kernel's tty workers, which a loaded machine delays by up to a second each way
-#: whatever the emulator does (docs/hardware_bus.md, "What is emulated"): with 34 ms a busy
-#: machine's delay reads as a servo that does not answer.
-EMULATED_REPLY_TIMEOUT_S = 2.0
-#: Our watchdog's least limit for a session on the emulator on the loop's clock, s: its plant's
-#: step holds the read after each command, and a loaded machine stalls it for a second or so.
-EMULATED_LOOP_TIMEOUT_S = 2.0
+def _robot_budget(args, scenario) -> int:
+    """``robot MOTION --emulate --budget``: the error budget of servos as they are
+    (:func:`~.emulated_budget.emulated_budget`), printed and written in ``--out``."""
+    from ..base.errors import InvalidConfigError
+    from .emulated_budget import SOURCES, emulated_budget, write_budget
 
-
-def _start_emulator(scenario, x0, realtime: bool = False):
-    """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
-    the CPU of 1 ms; on ``emulator.clock: loop`` the deadline misses counted and not fatal, the
-    emulator's own step holding the loop's reads; its servos and bus as the scenario's
-    ``emulator`` draws them, ``servos`` on the process returned) behind it in a process of its
-    own, resting at pose ``x0``, and point ``scenario.bus`` at its pseudo-terminal, with a reply
-    timeout of :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
-    :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it). With ``realtime``
-    the emulator's threads run on SCHED_FIFO one priority below the loop, off the loop's core:
-    they stand in for servos, which compute on chips of their own."""
-    from ..station.bus.servos import servo_spec
-    from .emulator_process import EmulatorProcess
-    from .plant_backend import behind_the_bus
-
-    bus = scenario.bus
-    if bus.reply_timeout_s is None:
-        bus.reply_timeout_s = EMULATED_REPLY_TIMEOUT_S
-    if scenario.emulator.clock == "loop":  # a late period is the emulator's step, not a robot's
-        bus.max_deadline_misses = max(bus.max_deadline_misses, 10**9)
-    servos = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
-    robot = behind_the_bus(scenario, servos)
-    emulator = EmulatorProcess(
-        x0=x0,
-        ids=bus.ids,
-        model=bus.model,
-        scenario=robot,
-        zero_counts=bus.zero_counts,
-        start_timeout_s=300.0,
-        realtime=realtime,
-        surrogate=bus.surrogate,
-        servos=servos,
-        baud_rate=bus.baud_rate,
-        period_s=scenario.control_period_s if scenario.emulator.clock == "loop" else None,
-    ).start()
-    bus.port = emulator.port
-    return emulator
+    if args.emulate is None or args.motion is None:
+        raise InvalidConfigError("--budget runs on the bus emulator: give a motion and --emulate")
+    runs = len(SOURCES) + 1 - (scenario.emulator.clock == "loop")
+    say = say_stage("robot")
+    say(
+        f"the error budget of servos as they are: {runs} sessions of {scenario.duration_s:g} s "
+        "on the emulator (minutes)"
+    )
+    budget = emulated_budget(scenario, args.emulate.pose, say=say)
+    print("\n".join(budget.lines()))
+    paths = write_budget(budget, Path(args.out))
+    print("wrote " + " and ".join(str(path) for path in paths))
+    return 0
 
 
 def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
+    from .emulator_process import EMULATED_LOOP_TIMEOUT_S, start_emulator
     from .session import end_line, run_on_robot
 
     emulator = None
@@ -391,7 +367,7 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 file=sys.stderr,
                 flush=True,
             )
-            emulator = _start_emulator(scenario, args.emulate.pose, args.realtime)
+            emulator = start_emulator(scenario, args.emulate.pose, args.realtime)
             clock = "at real time"
             if emulator.period_s is not None:  # its step holds a read: no robot's stall
                 args.loop_timeout = max(args.loop_timeout, EMULATED_LOOP_TIMEOUT_S)

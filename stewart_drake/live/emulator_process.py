@@ -366,3 +366,51 @@ class EmulatorProcess:
         while a servo drove it (after :meth:`close`): t the wall clock's (perf_counter), or on
         the loop's clock (``period_s``) the loop's time since its first command."""
         return self._record[:, 0], self._record[:, 1:]
+
+
+#: The reply timeout of the emulated bus when the scenario leaves the SDK's, s. The SDK's (about
+#: 34 ms) is a USB adapter's latency timer; the emulator's pseudo-terminal passes each packet
+#: through the kernel's tty workers, which a loaded machine delays by up to a second each way
+#: whatever the emulator does (docs/hardware_bus.md, "What is emulated"): with 34 ms a busy
+#: machine's delay reads as a servo that does not answer.
+EMULATED_REPLY_TIMEOUT_S = 2.0
+#: Our watchdog's least limit for a session on the emulator on the loop's clock, s: its plant's
+#: step holds the read after each command, and a loaded machine stalls it for a second or so.
+EMULATED_LOOP_TIMEOUT_S = 2.0
+
+
+def start_emulator(scenario, x0, realtime: bool = False) -> EmulatorProcess:
+    """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
+    the CPU of 1 ms; on ``emulator.clock: loop`` the deadline misses counted and not fatal, the
+    emulator's own step holding the loop's reads; its servos and bus as the scenario's
+    ``emulator`` draws them, ``servos`` on the process returned) behind it in a process of its
+    own, resting at pose ``x0``, and point ``scenario.bus`` at its pseudo-terminal, with a reply
+    timeout of :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
+    :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it). With ``realtime``
+    the emulator's threads run on SCHED_FIFO one priority below the loop, off the loop's core:
+    they stand in for servos, which compute on chips of their own."""
+    from ..station.bus.servos import servo_spec
+    from .plant_backend import behind_the_bus
+
+    bus = scenario.bus
+    if bus.reply_timeout_s is None:
+        bus.reply_timeout_s = EMULATED_REPLY_TIMEOUT_S
+    if scenario.emulator.clock == "loop":  # a late period is the emulator's step, not a robot's
+        bus.max_deadline_misses = max(bus.max_deadline_misses, 10**9)
+    servos = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+    robot = behind_the_bus(scenario, servos)
+    emulator = EmulatorProcess(
+        x0=x0,
+        ids=bus.ids,
+        model=bus.model,
+        scenario=robot,
+        zero_counts=bus.zero_counts,
+        start_timeout_s=300.0,
+        realtime=realtime,
+        surrogate=bus.surrogate,
+        servos=servos,
+        baud_rate=bus.baud_rate,
+        period_s=scenario.control_period_s if scenario.emulator.clock == "loop" else None,
+    ).start()
+    bus.port = emulator.port
+    return emulator

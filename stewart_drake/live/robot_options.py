@@ -90,6 +90,13 @@ def add_drive_arguments(rob) -> None:
         "platform's clock: a 2-column file (time, displacement in mm: IntERAct's Resp/ files) "
         "or a headed file of one axis; the run's relative latency is measured from the encoders",
     )
+    rob.add_argument(
+        "--budget",
+        action="store_true",
+        help="with --emulate and a motion: the error budget of servos as they are, one "
+        "session with every departure the emulator draws, then one without each (minutes); "
+        "printed and written as OUT/robot_budget.md and .json",
+    )
     rob.add_argument("--meshcat", action="store_true", help="show the measured robot in Meshcat")
     rob.add_argument(
         "--teleop",
