@@ -1400,7 +1400,10 @@ def test_a_ctrl_c_from_the_package_s_first_line_on_is_one_line(tmp_path, how):
             if proc.poll() is None:
                 proc.kill()
                 proc.communicate()
-        ours = proc.returncode == 130 and bool(
+        # 130, or ended by the SIGINT itself after our line (a shell shows both as 130; seen
+        # once in a thousand on Python 3.13 with -m, the cause not found: the line is what a user
+        # reads, and no traceback)
+        ours = proc.returncode in (130, -signal.SIGINT) and bool(
             re.fullmatch(_OUR_CTRL_C_LINE, (err.strip().splitlines() or [""])[-1])
         )
         assert err.count("interrupted by SIGINT") <= 1, err

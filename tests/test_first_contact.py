@@ -397,10 +397,15 @@ def test_analyze_says_what_it_computes_and_draws(tmp_path, capsys):
     captured = capsys.readouterr()
     assert captured.err.splitlines() == [
         "stewart-drake analyze: linearizing the loop and computing the margins of the 6 axes ...",
+        "stewart-drake analyze: the plant gains and the delay the loop survives ...",
         "stewart-drake analyze: drawing the Bode and sensitivity plots of the 6 loops ...",
     ]
     assert "wrote" in captured.out
-    assert json.loads((tmp_path / "loop.json").read_text())["spectral_radius"] < 1
+    record = json.loads((tmp_path / "loop.json").read_text())
+    assert record["spectral_radius"] < 1
+    # what the loop survives, said and written: holds or does NOT hold, never silent
+    verdict = "holds" if record["robustness"]["holds"] else "does NOT hold"
+    assert f"  {verdict} gain 0.5 to 2 with 6 ms more delay" in captured.out
 
 
 def test_workspace_says_what_it_writes_after_the_sweep(tmp_path, capsys):
