@@ -233,3 +233,35 @@ def test_without_mutmut_the_tool_says_how_to_install_it_before_any_work(monkeypa
         mutation.main(["--module", "signals"])
     assert stop.value.code == 2
     assert 'pip install -e ".[test,mutation]"' in capsys.readouterr().err
+
+
+def test_a_kernel_s_decorator_becomes_a_call_after_its_last_line():
+    """mutmut mutates no decorated function: the scratch copy calls ``_njit`` after the function
+    instead, and the module then holds the same marked functions as decorated."""
+    source = (
+        "def _njit(f):\n"
+        "    f.kernel = True\n"
+        "    return f\n"
+        "\n"
+        "@_njit\n"
+        "def a(x):\n"
+        "    return x + 1\n"
+        "\n"
+        "\n"
+        "def b(x):\n"
+        "    return a(x) * 2\n"
+        "\n"
+        "@_njit  \n"
+        "def c(x):\n"
+        "    y = x\n"
+        "    return y\n"
+        "reference = sorted(n for n, v in dict(globals()).items() if getattr(v, 'kernel', 0))\n"
+    )
+    text = mutation.undecorated(source)
+    assert "@_njit" not in text
+    assert text.count("= _njit(") == 2
+    namespace: dict = {}
+    exec(compile(text, "<undecorated>", "exec"), namespace)
+    assert namespace["reference"] == ["a", "c"]
+    assert namespace["b"](1) == 4
+    assert not getattr(namespace["b"], "kernel", False)

@@ -15,19 +15,18 @@ the working tree (the tracked folders below, with a ``[tool.mutmut]`` section ad
 pyproject.toml), never in the tree itself, with ``NUMBA_DISABLE_JIT=1`` (but the modules of
 :data:`JIT_ON`): the compiled kernels run
 as the Python they are written in, so a mutant costs no compilation and the tests see it. mutmut
-does not mutate decorated functions, so in the scratch copy the ``@_njit`` lines of a module are
-removed (with the JIT off, ``_njit`` returns the function itself: the same code runs). mutmut
+does not mutate decorated functions, so in the scratch copy each ``@_njit`` line of a module
+becomes a call after its function (with the JIT off, ``_njit`` returns the function itself,
+marked as a kernel: the same code runs, and the module's interpreted ``reference`` holds it). mutmut
 forks one process per mutant and runs only the tests that called the mutated function; a mutant
 whose tests take longer than 2 times their clean time plus 3 s counts as a timeout (killed).
 
 The LQI's step (control/lqi/step.py) is guarded by tests/test_lqi_stages.py, which holds each
 stage to numbers computed from the equations, and not by test_lqi_step.py, which holds the
-compiled step equal to its uncompiled reference (numba's ``py_func``): with the JIT off there is
-no compiled function and so no ``py_func``, ``step.reference`` is empty, and the file's first
-test fails, which stops mutmut's first (stats) run of the tests after seconds; and both of its
-sides would run the same mutated code, so it could not kill a mutant anyway (nor its closed-loop
-runs, one with each). A run where mutmut checked no mutant is reported as failed, with mutmut's
-output.
+compiled step equal to its uncompiled reference (numba's ``py_func``): with the JIT off both of
+its sides run the same mutated Python, so it cannot kill a mutant (nor its closed-loop runs, one
+with each), only cost their time. A run where mutmut checked no mutant is reported as failed,
+with mutmut's output.
 
 A module's test files in :data:`MODULES` hold its fast unit tests only: no closed loop, no
 pre-run check of a whole path, no command. With the JIT off those run the LQI's step and the
@@ -135,11 +134,34 @@ MODULES = {
         "tests/test_relative_latency.py",
         "tests/test_pair_judgement.py",
     ),
+    # The crank servo of the bus robots: its law and estimator (compiled, run as Python), its
+    # LeafSystem, its design and its driver, against the law written out in the test; its
+    # margins against the loop's characteristic roots; the servos' own loop's goal stream.
+    "stewart_drake/control/servo/kernels.py": ("tests/test_crank_servo.py",),
+    "stewart_drake/control/servo/controller.py": ("tests/test_crank_servo.py",),
+    "stewart_drake/control/servo/design.py": (
+        "tests/test_crank_servo.py",
+        "tests/test_servo_margins.py",
+    ),
+    "stewart_drake/control/servo/driver.py": (
+        "tests/test_crank_servo.py",
+        "tests/test_servo_goal_stream.py",
+    ),
+    "stewart_drake/control/servo/margins.py": ("tests/test_servo_margins.py",),
+    "stewart_drake/control/servo/goal_stream.py": ("tests/test_servo_goal_stream.py",),
+    # The emulated bus: its replies' bytes and delays, its servos' tables and the plant behind.
+    "stewart_drake/station/bus/emulator.py": (
+        "tests/test_servo_emulation.py",
+        "tests/test_emulator_clock.py",
+    ),
+    # The error budget: its floor, its table's units, and each share of a closed-loop run.
+    "stewart_drake/analysis/error_budget.py": ("tests/test_error_budget.py",),
 }
 #: Modules with no compiled kernel of their own whose tests drive the package's compiled ones
-#: (the IK and the path checks of every shaped period): mutated with the JIT on, since with it
-#: off their clean run takes 289 s instead of 4.5 s (a mutant of theirs is compiled code never).
-JIT_ON = frozenset({"stewart_drake/run/shaping.py"})
+#: (shaping: the IK and the path checks of every shaped period; the error budget: the closed
+#: loops whose shares it takes): mutated with the JIT on, since with it off their clean runs take
+#: 289 s instead of 4.5 s and 270 s instead of 60 (a mutant of theirs is compiled code never).
+JIT_ON = frozenset({"stewart_drake/run/shaping.py", "stewart_drake/analysis/error_budget.py"})
 #: What the scratch copy holds: the package, the tests and what they read.
 COPIED = ("stewart_drake", "tests", "tools", "sdf", "scenarios", "docs", "README.md")
 #: The survivors' accounts: ``"<mutant name>" = "why it survives"``.
@@ -219,7 +241,8 @@ def mutmut_section(module: str, tests: tuple) -> str:
 
 def scratch_copy(module: str, tests: tuple, folder: Path) -> None:
     """Copy the working tree's :data:`COPIED` into ``folder``, with the mutmut section added to
-    pyproject.toml and the ``@_njit`` lines of ``module`` removed."""
+    pyproject.toml and the ``@_njit`` lines of ``module`` turned into calls after each function
+    (mutmut does not mutate a decorated function)."""
     if folder.exists():
         shutil.rmtree(folder)
     folder.mkdir(parents=True)
@@ -233,8 +256,27 @@ def scratch_copy(module: str, tests: tuple, folder: Path) -> None:
     pyproject = (REPO / "pyproject.toml").read_text()
     (folder / "pyproject.toml").write_text(pyproject + mutmut_section(module, tests))
     target = folder / module
-    lines = target.read_text().splitlines(keepends=True)
-    target.write_text("".join(line for line in lines if not _NJIT_LINE.match(line)))
+    target.write_text(undecorated(target.read_text()))
+
+
+def undecorated(text: str) -> str:
+    """A module's source with each ``@_njit`` line removed and the decorator called after its
+    function's last line instead (``name = _njit(name)``): mutmut mutates the function, and with
+    the JIT off ``_njit`` returns it marked as a kernel, so the module's ``interpreted``
+    namespace still holds it."""
+    ends = {
+        node.end_lineno: node.name
+        for node in ast.parse(text).body
+        if isinstance(node, ast.FunctionDef)
+        and any(isinstance(d, ast.Name) and d.id == "_njit" for d in node.decorator_list)
+    }
+    out = []
+    for number, line in enumerate(text.splitlines(keepends=True), start=1):
+        if not _NJIT_LINE.match(line):
+            out.append(line)
+        if number in ends:
+            out.append(f"{ends[number]} = _njit({ends[number]})\n")
+    return "".join(out)
 
 
 def run_mutmut(

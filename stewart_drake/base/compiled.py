@@ -314,6 +314,10 @@ def load_signed_index(path) -> tuple | None:
         return None
 
 
+#: The attribute :func:`njit_cached` sets on every function it compiles.
+KERNEL_MARK = "_stewart_drake_kernel"
+
+
 def njit_cached(function, cache: bool = True, **options):
     """``numba.njit(cache=True, **options)(function)``, with the cache in a folder that is safe
     to load from (:func:`cache_folder_problem`) and damaged entries compiled again; without the
@@ -326,8 +330,13 @@ def njit_cached(function, cache: bool = True, **options):
     source's ``__pycache__`` nor the user's cache folder is writable: the cache then goes to
     :func:`fallback_cache_dir`, made private to the user, and if even that fails the function
     compiles in every process.
+
+    The function is marked (:data:`KERNEL_MARK`) before it is compiled: with
+    ``NUMBA_DISABLE_JIT`` numba returns it as it is, and :func:`interpreted` still finds it.
     """
     import numba
+
+    setattr(function, KERNEL_MARK, True)
 
     _listen()
     if not cache:
@@ -451,21 +460,31 @@ def _recovering(base: type) -> type:
     return _RecoveringCacheFile
 
 
+def _python_of(value):
+    """The Python a kernel was compiled from (numba's ``py_func``); with ``NUMBA_DISABLE_JIT``
+    the marked function itself; None for anything else."""
+    f = getattr(value, "py_func", None)
+    if callable(f):
+        return f
+    return value if callable(value) and getattr(value, KERNEL_MARK, False) else None
+
+
 def interpreted(namespace: dict) -> types.SimpleNamespace:
     """The compiled functions of a module's ``namespace`` (its ``globals()``) as the Python they
     were compiled from: each one's numba ``py_func``, run with the module's other compiled
     functions as theirs too, so that nothing it calls is compiled. The compiled and the
     interpreted form are the same code by construction (``f.__code__ is
     compiled.py_func.__code__``); a test holds their results equal. A function taken from
-    another module (an ``ik_scalar`` compiled here) is its own ``py_func`` as it is.
+    another module (an ``ik_scalar`` compiled here) is its own ``py_func`` as it is. With
+    ``NUMBA_DISABLE_JIT`` nothing is compiled: the functions :func:`njit_cached` marked are
+    taken as they are (so a comparison of the two forms runs, on the same Python twice).
 
     Returns:
         a namespace with one attribute per compiled function, of the same name.
     """
     plain = dict(namespace)
-    compiled = {k: v for k, v in namespace.items() if callable(getattr(v, "py_func", None))}
-    for name, dispatcher in compiled.items():
-        f = dispatcher.py_func
+    compiled = {k: f for k, v in namespace.items() if (f := _python_of(v)) is not None}
+    for name, f in compiled.items():
         plain[name] = (
             types.FunctionType(f.__code__, plain, f.__name__, f.__defaults__, f.__closure__)
             if f.__globals__ is namespace
