@@ -6,7 +6,13 @@ the command line."""
 import numpy as np
 import pytest
 
-from stewart_drake.analysis.error_budget import SOURCES, error_budget, quantization_floor
+from stewart_drake.analysis.error_budget import (
+    SOURCES,
+    axis_rms,
+    error_budget,
+    quantization_floor,
+    source_share,
+)
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.references.organ.breathing import Breathing
 from stewart_drake.robot import kinematics
@@ -192,3 +198,21 @@ def test_each_without_run_takes_away_its_source_and_only_it(monkeypatch):
     assert model.payload_scale == 1.0 and full.payload_scale == 1.2
     for variant in (encoders, current, friction, model):
         assert variant.control_period_s == 0.01
+
+
+def test_a_share_is_what_taking_the_source_away_removed_in_quadrature():
+    """3-4-5 in quadrature; nothing where taking it away made it worse; a run that measured
+    nothing (NaN) shares nothing to give."""
+    total = np.array([5.0, 5.0, 1.0, 0.0, 2.0, np.nan])
+    without = np.array([3.0, 4.0, 2.0, 0.0, 2.0, 1.0])
+    share = source_share(total, without)
+    np.testing.assert_allclose(share[:5], [4.0, 3.0, 0.0, 0.0, 0.0], rtol=0, atol=1e-15)
+    assert np.isnan(share[5])
+
+
+def test_the_rms_is_per_axis_over_the_rows():
+    e = np.zeros((4, 6))
+    e[:, 0] = [3.0, -3.0, 3.0, -3.0]  # a square wave of 3: RMS 3
+    e[:, 4] = [1.0, 1.0, 1.0, 5.0]  # sqrt((3 + 25) / 4) = sqrt(7)
+    np.testing.assert_allclose(axis_rms(e), [3.0, 0, 0, 0, np.sqrt(7.0), 0], rtol=1e-15, atol=0)
+    assert np.isnan(axis_rms(np.empty((0, 6)))).all()

@@ -236,7 +236,7 @@ def error_budget(
             continue
         changed = dataclasses.replace(base, **variants[name])
         without[name] = simulate(f"without its {name}", changed)[0]
-        rows[name] = np.sqrt(np.maximum(total**2 - without[name] ** 2, 0.0))
+        rows[name] = source_share(total, without[name])
     return ErrorBudget(
         floor=quantization_floor(plan, centre),
         total=total,
@@ -252,6 +252,20 @@ def error_budget(
             "controller": type(base.controller).__name__,
         },
     )
+
+
+def axis_rms(e) -> np.ndarray:
+    """Per-axis RMS of a pose error ``e`` (n, 6) [rad, m] over its rows: (6,); NaN for no row
+    (a run that measured nothing has no error to give)."""
+    e = np.asarray(e, dtype=float)
+    return np.sqrt(np.mean(np.square(e), axis=0)) if len(e) else np.full(e.shape[-1], np.nan)
+
+
+def source_share(total, without) -> np.ndarray:
+    """A source's share of the error, per axis: sqrt(total^2 - without^2), ``total`` the RMS
+    error (6,) with every source and ``without`` with that one taken away; 0 where taking it away
+    did not lower the error (the sources interact: the shares are not additive)."""
+    return np.sqrt(np.maximum(np.square(total) - np.square(without), 0.0))
 
 
 def _believing_no_friction(driver):
@@ -286,7 +300,4 @@ def _errors(scenario, reference, skip: float) -> tuple[np.ndarray, np.ndarray, n
         x_k, _ = fk(believed, theta, x0=x_k)
         x_read[i] = x_k
 
-    def rms(v):
-        return np.sqrt(np.mean(np.square(v), axis=0))
-
-    return rms(x_true - x_d), rms(x_read - x_d), x_d.mean(axis=0)
+    return axis_rms(x_true - x_d), axis_rms(x_read - x_d), x_d.mean(axis=0)

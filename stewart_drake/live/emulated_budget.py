@@ -90,10 +90,6 @@ def _errors(scenario, x0, out, say) -> tuple[np.ndarray, np.ndarray, tuple]:
     return e_true, e_read, window
 
 
-def _rms(e: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.mean(np.square(e), axis=0)) if len(e) else np.full(6, np.nan)
-
-
 def emulated_budget(scenario, x0, say=None):
     """The error budget of ``scenario``'s robot on servos as the realistic emulator draws them
     (module docstring), resting at ``x0`` (6,) [rad, m] before each session.
@@ -124,10 +120,10 @@ def emulated_budget(scenario, x0, say=None):
 
 def _budget(scenario, x0, out: str, say, loop_clock: bool):
     """:func:`emulated_budget`'s sessions, their logs in ``out``."""
-    from ..analysis.error_budget import ErrorBudget, quantization_floor
+    from ..analysis.error_budget import ErrorBudget, axis_rms, quantization_floor, source_share
 
     e_true, e_read, window = _errors(scenario, x0, out, say)
-    total = _rms(e_true)
+    total = axis_rms(e_true)
     rows, without, assumptions = {}, {}, {"measured by": "the realistic bus emulator"}
     for name, (fields, _) in SOURCES.items():
         if name == "bus timing" and loop_clock:
@@ -139,12 +135,12 @@ def _budget(scenario, x0, out: str, say, loop_clock: bool):
             setattr(variant.emulator, field, value)
         variant.validate()
         say(f"without its {name} ({', '.join(f'{k} {v:g}' for k, v in fields.items())}) ...")
-        without[name] = _rms(_errors(variant, x0, out, say)[0])
-        rows[name] = np.sqrt(np.maximum(total**2 - without[name] ** 2, 0.0))
+        without[name] = axis_rms(_errors(variant, x0, out, say)[0])
+        rows[name] = source_share(total, without[name])
     return ErrorBudget(
         floor=quantization_floor(scenario),
         total=total,
-        encoder_pose=_rms(e_read),
+        encoder_pose=axis_rms(e_read),
         rows=rows,
         without=without,
         window_s=window,
