@@ -990,7 +990,9 @@ def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
     assert not (home / "out" / "run_paper.npz").exists()
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP], ids=lambda s: s.name)
+@pytest.mark.parametrize(
+    "signum", [signal.SIGINT, signal.SIGHUP, signal.SIGQUIT], ids=lambda s: s.name
+)
 def test_a_signal_ends_a_run_in_process_with_its_exit_code(
     tmp_path, monkeypatch, capsys, ctrl_c, signum
 ):
@@ -998,8 +1000,10 @@ def test_a_signal_ends_a_run_in_process_with_its_exit_code(
     sent to it once it simulates: 128 + signum and the same one line, no result file."""
     from stewart_drake.run import simulate as experiments
 
-    # As in a user's terminal: SIGHUP ends a process (a suite started under nohup ignores it).
+    # As in a user's terminal: SIGHUP and SIGQUIT end a process (a suite started under nohup
+    # ignores SIGHUP).
     old_hup = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    old_quit = signal.signal(signal.SIGQUIT, signal.SIG_DFL)
     advance = experiments.advance
     sent = []
 
@@ -1019,6 +1023,7 @@ def test_a_signal_ends_a_run_in_process_with_its_exit_code(
             timer.cancel()
             timer.join(HANG_S)
         signal.signal(signal.SIGHUP, old_hup)
+        signal.signal(signal.SIGQUIT, old_quit)
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(sent) == 1 and code == 128 + signum, (code, lines)
     assert lines[-1] == (
@@ -1248,7 +1253,7 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(monkeypatch, capsys):
 @pytest.mark.parametrize(
     "options, expected",
     [
-        (["--tolerance", "1.2.3mm,0.1deg"], "a tolerance is one length and one angle"),
+        (["--tolerance", "1.2.3mm,0.1deg"], "--tolerance: one length and one angle"),
         (["--tolerance", "1e999mm,0.1deg"], "each a finite positive number with its unit"),
         (["--param", "amplitude=1..5mm"], "'1..5mm' is not a finite number with a unit"),
         (["--map", "SI=--Z"], "axis '--Z': one sign at most"),

@@ -166,28 +166,35 @@ def test_a_loop_that_misses_every_deadline_says_so_in_a_few_lines(tmp_path, monk
     assert "the period did not hold" in out
 
 
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGQUIT], ids=lambda s: s.name)
 def test_a_signal_the_moment_the_torque_is_on_ends_the_run_with_its_end_line(
-    tmp_path, monkeypatch, capsys, ctrl_c
+    tmp_path, monkeypatch, capsys, ctrl_c, signum
 ):
-    """A SIGINT delivered as the torque-enable returns (before the announcement): the run ends
-    as any interrupted run, with its end line, the torque off confirmed and exit 130. Was: the
-    KeyboardInterrupt escaped the session between the enable and its ``try`` (no end line, no
-    logs), seen under load in the bus rehearsal."""
+    """A SIGINT (Ctrl-C) or SIGQUIT (Ctrl-\\) delivered as the torque-enable returns (before the
+    announcement): the run ends as any interrupted run, with its end line, the torque off
+    confirmed and exit 128 + the signal. Was: the KeyboardInterrupt escaped the session between
+    the enable and its ``try`` (no end line, no logs), seen under load in the bus rehearsal; and
+    SIGQUIT, handled by no one, ended the process with every servo's torque still on."""
     enable = driver.DynamixelBus.enable_torque
 
     def enabled_then_signal(self, *args, **kw):
         done = enable(self, *args, **kw)
-        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), signum)
         time.sleep(0.05)  # the handler runs in this thread at the next bytecode
         return done
 
     monkeypatch.setattr(driver.DynamixelBus, "enable_torque", enabled_then_signal)
-    code, torque = _home_on_the_emulator(tmp_path)
+    # As in a user's terminal: SIGQUIT at its default (a suite's parent may have set it aside).
+    old = signal.signal(signal.SIGQUIT, signal.SIG_DFL)
+    try:
+        code, torque = _home_on_the_emulator(tmp_path)
+    finally:
+        signal.signal(signal.SIGQUIT, old)
     out, err = capsys.readouterr()
     ends = [line for line in (out + err).splitlines() if line.startswith("stewart-drake robot:")]
-    assert code == 130, (out, err)
+    assert code == 128 + signum, (out, err)
     assert len(ends) == 1, (out, err)
-    assert ends[0].startswith("stewart-drake robot: interrupted by SIGINT"), ends[0]
+    assert ends[0].startswith(f"stewart-drake robot: interrupted by {signum.name}"), ends[0]
     assert "torque off (confirmed by every servo)" in ends[0], ends[0]
     assert "could not be written" not in ends[0], ends[0]
     assert torque == [0] * 6
@@ -534,14 +541,14 @@ def test_a_run_ended_within_its_first_logged_period_says_so_and_writes_nothing(
 
 
 def test_the_emulator_outlives_a_signal_to_the_process_group():
-    """A Ctrl-C or SIGTERM to the job's process group reaches the emulator's process too: it
+    """A Ctrl-C, Ctrl-\\ or SIGTERM to the job's process group reaches the emulator's process too: it
     ignores them (the session turns the torque off through it and must find it answering),
     answers the bus after them, and ends when its parent stops it."""
     from stewart_drake.live.emulator_process import EmulatorProcess
 
     with EmulatorProcess(x0=X_HOME, start_timeout_s=HANG_S) as emu:
         child = emu._process
-        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT):
             os.kill(child.pid, signum)
         child.join(1.0)  # wait-kept: a signal not ignored ends it well within a second
         assert child.is_alive()

@@ -6,13 +6,13 @@ idea (imported when the subcommand runs, so `stewart-drake sdf` does not pay for
 Simulator). Here: :func:`main`, which turns what goes wrong into a one-line message and a non-zero
 exit, no traceback: exit 2 for bad arguments and StewartError (refused input, a diverged run, a
 results folder of other settings or in use by another study, lost jobs), 1 for a file that cannot be
-read or written, 130 for Ctrl-C, 143 for SIGTERM and 129 for SIGHUP (128 + the signal: every command
-handles the three alike, within a second or two). Every output (folder, file, the sub-folders a
-command writes into) is checked before any work starts
+read or written, 130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP and 131 for SIGQUIT (Ctrl-\\; 128 +
+the signal: every command handles the four alike, within a second or two). Every output (folder,
+file, the sub-folders a command writes into) is checked before any work starts
 (:func:`~stewart_drake.execution.options.check_outputs`), so a long run never ends in a failed save,
 a device node, FIFO or socket is never replaced, and no output is one of the command's own inputs
-(:func:`~stewart_drake.base.fileio.inputs_kept`); the hidden temporaries a killed write left
-there (the tool's own, whose writer is gone) are removed.
+(:func:`~stewart_drake.base.fileio.inputs_kept`); the hidden temporaries a killed write left there
+(the tool's own, whose writer is gone) are removed.
 """
 
 from __future__ import annotations
@@ -33,21 +33,27 @@ RESUMABLE = {"collect": "", "evaluate": "", "design": "search"}
 
 
 def _interruptible():
-    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.execution.runners.Interrupted` (a
+    """Make SIGTERM, SIGHUP and SIGQUIT raise
+    :class:`~stewart_drake.execution.runners.Interrupted` (a
     KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs, and Ctrl-C its
     KeyboardInterrupt, each noted (:func:`~stewart_drake.execution.runners.interrupt_raised`:
     one that code swallows still stops the command before a robot is powered); returns the
     handlers to restore. A signal the process was started ignoring (``nohup``) stays ignored,
     and a SIGINT handler other than Python's is kept."""
-    from ..execution.runners import forget_interrupts, raise_interrupted, raise_keyboard_interrupt
+    from ..execution.runners import (
+        CANCEL_SIGNALS,
+        forget_interrupts,
+        raise_interrupted,
+        raise_keyboard_interrupt,
+    )
 
     forget_interrupts()
     if threading.current_thread() is not threading.main_thread():
         return {}
     handlers = {
         s: signal.signal(s, raise_interrupted)
-        for s in (signal.SIGTERM, signal.SIGHUP)
-        if signal.getsignal(s) is not signal.SIG_IGN
+        for s in CANCEL_SIGNALS
+        if s != signal.SIGINT and signal.getsignal(s) is not signal.SIG_IGN
     }
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         handlers[signal.SIGINT] = signal.signal(signal.SIGINT, raise_keyboard_interrupt)
@@ -91,18 +97,20 @@ def main(argv: list[str] | None = None) -> int:
 
 @contextlib.contextmanager
 def _signals_held():
-    """Hold SIGINT, SIGTERM and SIGHUP while the block runs, then pass a held one to its handler
-    (a KeyboardInterrupt, handled as any). For the imports that initialize Drake's extension
-    modules: a signal that lands inside pydrake's own initialization makes it print a C++ log
-    with a stack dump before our one line, and one inside a nanobind module's import (Drake's
-    ``systems.framework`` creating an enum) aborts the process (SIGABRT). Held by Python
-    handlers that only note the signal (blocking it would not do: numpy's threads, already
-    started, would take it). Outside the main thread it holds nothing."""
+    """Hold the terminal's signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT) while the block runs, then
+    pass a held one to its handler (a KeyboardInterrupt, handled as any). For the imports that
+    initialize Drake's extension modules: a signal that lands inside pydrake's own initialization
+    makes it print a C++ log with a stack dump before our one line, and one inside a nanobind
+    module's import (Drake's ``systems.framework`` creating an enum) aborts the process (SIGABRT).
+    Held by Python handlers that only note the signal (blocking it would not do: numpy's threads,
+    already started, would take it). Outside the main thread it holds nothing."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     noted: list[int] = []
-    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    from ..execution.runners import CANCEL_SIGNALS
+
+    handlers = {s: signal.getsignal(s) for s in CANCEL_SIGNALS}
     held = {s: h for s, h in handlers.items() if callable(h)}  # not SIG_IGN, SIG_DFL, None
     for signum in held:
         signal.signal(signum, lambda signum, frame: noted.append(signum))
@@ -163,7 +171,7 @@ def _main(argv: list[str] | None, own: bool = False) -> int:
     except OSError as err:  # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP, SIGQUIT
         return _interrupted(err, args.command, getattr(args, "out", None))
     except (ImportError, MemoryError) as err:  # a Ctrl-C while imports initialize pydrake
         if _out_of_memory(err):

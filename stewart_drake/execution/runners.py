@@ -16,7 +16,7 @@ produced none:
   pool charges every job in flight when one of its workers dies, and restarts).
 
 Each job is yielded exactly once; ``progress(job_id, outcome)``, if given, is called before each
-yield. SIGINT, SIGTERM and SIGHUP received while ``map`` runs in the main thread stop
+yield. SIGINT, SIGTERM, SIGHUP and SIGQUIT received while ``map`` runs in the main thread stop
 submitting, cancel what is pending, end the workers and raise :class:`Interrupted` (a
 KeyboardInterrupt that names the signal); a signal the process ignores stays ignored.
 
@@ -56,10 +56,12 @@ DEFAULT_RECYCLE = 20
 AUTO_RECYCLE = "auto"
 #: Attempts after the first for a job whose worker died.
 DEFAULT_RETRIES = 2
-#: Signals that cancel a running ``map``.
-CANCEL_SIGNALS = tuple(
-    getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)
-)
+#: The signals a terminal or a job control sends to end a command: Ctrl-C, ``kill``, a closed
+#: terminal, Ctrl-\. Every command handles them alike (exit status 128 + the signal), and a
+#: session on the robot ends with its torque off whichever arrives.
+TERMINAL_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP", "SIGQUIT")
+#: Their numbers on this platform: each cancels a running ``map`` and ends a command.
+CANCEL_SIGNALS = tuple(getattr(signal, n) for n in TERMINAL_SIGNALS if hasattr(signal, n))
 
 
 @dataclass
@@ -192,8 +194,8 @@ _RAISED: list[int] = []
 
 
 def raise_interrupted(signum, frame):
-    """A signal handler: raise :class:`Interrupted` for ``signum`` (SIGTERM, SIGHUP), noted in
-    :func:`interrupt_raised`."""
+    """A signal handler: raise :class:`Interrupted` for ``signum`` (SIGTERM, SIGHUP, SIGQUIT),
+    noted in :func:`interrupt_raised`."""
     _RAISED.append(int(signum))
     raise Interrupted(signum)
 
@@ -236,7 +238,8 @@ def call_job(fn, job_id: str, job):
 
 @contextlib.contextmanager
 def _cancel_on_signals():
-    """While inside: SIGINT, SIGTERM, SIGHUP raise :class:`Interrupted` (main thread only)."""
+    """While inside: SIGINT, SIGTERM, SIGHUP, SIGQUIT raise :class:`Interrupted` (main thread
+    only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -364,8 +367,11 @@ def _die_with_parent(parent_pid: int) -> None:
 
 
 def _worker_init(parent_pid: int) -> None:
-    """Initializer of a local worker: Ctrl-C is the parent's to handle (it ends the workers)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    """Initializer of a local worker: the terminal's keys (Ctrl-C, Ctrl-\\), sent to the whole
+    foreground group, are the parent's to handle (it ends the workers)."""
+    for name in ("SIGINT", "SIGQUIT"):
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
     _die_with_parent(parent_pid)
 
 

@@ -53,18 +53,20 @@ def _serve(conn, made: _ChildArgs) -> None:  # pragma: no cover
     ("port", the port), serves until told to stop, then sends the record. If it cannot start it
     sends ("error", one line) instead of a traceback on the terminal.
 
-    It ignores SIGINT, SIGTERM and SIGHUP: an operator's Ctrl-C (or a signal to the job's
-    process group) is for the robot's session, which then turns the torque off through this
-    emulator and must find it still answering, as servos keep answering a stopped program. It
-    ends when the parent says stop or its end of the pipe closes (the parent gone)."""
+    It ignores the terminal's signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT): an operator's Ctrl-C (or a
+    signal to the job's process group) is for the robot's session, which then turns the torque off
+    through this emulator and must find it still answering, as servos keep answering a stopped
+    program. It ends when the parent says stop or its end of the pipe closes (the parent gone)."""
     import signal
     import sys
+
+    from ..execution.runners import TERMINAL_SIGNALS
 
     # The bus thread sleeps out each packet's time on the wire while the model thread steps the
     # plant: Python's default 5 ms between the threads' turns at the GIL would delay each reply
     # by up to that, several times a packet; servos answer on their own chips.
     sys.setswitchinterval(2e-4)
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):  # the session's (SessionSignals)
+    for name in TERMINAL_SIGNALS:  # the session's (SessionSignals)
         if hasattr(signal, name):
             signal.signal(getattr(signal, name), signal.SIG_IGN)
     try:

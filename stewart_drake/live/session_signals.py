@@ -1,11 +1,14 @@
-"""SIGINT, SIGTERM and SIGHUP around a session on the robot (:mod:`.session`): the first ends the
-run; once the torque is going off a signal is recorded, not raised, so nothing cuts short the
-torque-off's confirmation, the logs or the end line (:class:`SessionSignals`)."""
+"""The terminal's signals (SIGINT, SIGTERM, SIGHUP, SIGQUIT) around a session on the robot
+(:mod:`.session`): the first ends the run; once the torque is going off a signal is recorded, not
+raised, so nothing cuts short the torque-off's confirmation, the logs or the end line
+(:class:`SessionSignals`)."""
 
 from __future__ import annotations
 
 import signal
 import threading
+
+from ..execution.runners import TERMINAL_SIGNALS
 
 
 def signal_name(err: BaseException) -> tuple[str, int]:
@@ -16,7 +19,7 @@ def signal_name(err: BaseException) -> tuple[str, int]:
 
 
 class SessionSignals:
-    """SIGINT, SIGTERM and SIGHUP around a session on the robot (main thread only; a signal
+    """The terminal's signals around a session on the robot (main thread only; a signal
     the process was started ignoring stays ignored).
 
     Until :meth:`hold` (the torque-off) the first of them raises
@@ -38,7 +41,7 @@ class SessionSignals:
         raised: the signal raised (the first), or None.
     """
 
-    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+    NAMES = TERMINAL_SIGNALS
 
     def __init__(self):
         self.received: int | None = None
