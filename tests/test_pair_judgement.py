@@ -183,10 +183,10 @@ def test_the_pairs_json_holds_every_figure_under_its_name(tmp_path):
     pair = judge(*pair_files(tmp_path))
     d = json.loads(json.dumps(pair.as_dict(), allow_nan=False))  # no NaN in the JSON
     assert set(d) == {
-        "passed", "relative_latency_s", "definition", "internal_shift_s", "surrogate_shift_s",
-        "searched_s", "relative", "internal", "surrogate", "notes",
+        "verdict", "passed", "relative_latency_s", "definition", "internal_shift_s",
+        "surrogate_shift_s", "searched_s", "relative", "internal", "surrogate", "notes",
     }  # fmt: skip
-    assert d["passed"] is pair.passed is True
+    assert d["passed"] is pair.passed is True and d["verdict"] == "PASS"
     assert d["relative_latency_s"] == pair.relative_latency_s
     assert d["internal_shift_s"] == pair.internal_shift_s
     assert d["surrogate_shift_s"] == pair.surrogate_shift_s

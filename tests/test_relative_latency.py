@@ -293,6 +293,25 @@ def test_the_command_fails_a_relative_latency_beyond_its_bound(tmp_path):
     assert "beyond --max-relative-latency 30 ms" in figures["relative"]["line"]
 
 
+def test_the_pair_s_exit_status_is_the_worst_of_its_three_verdicts(tmp_path, capsys):
+    """At 50 mm neither motion can be judged (CANNOT JUDGE) while their timing passes: exit 3, as
+    ``verify`` of either motion alone; with the timing failing too, exit 2 (FAIL before CANNOT
+    JUDGE). Was: exit 0 beside a PASS line."""
+    t = camera_clock()
+    internal, surrogate = pair_files(
+        tmp_path, internal=seen(3, TRACE, t, DELAY_S + 0.05, offset_mm=OFFSETS_MM[0], seed=1)
+    )
+    code, figures = run(tmp_path, internal, surrogate, "--tolerance", "50mm,10deg")
+    assert figures["internal"]["verdict"] == figures["surrogate"]["verdict"] == "CANNOT JUDGE"
+    assert figures["relative"]["passed"] is True and figures["verdict"] == "CANNOT JUDGE"
+    assert code == 3, capsys.readouterr().out
+    code, figures = run(
+        tmp_path, internal, surrogate, "--tolerance", "50mm,10deg", "--max-relative-latency", "0.03"
+    )
+    assert figures["relative"]["passed"] is False and figures["internal"]["verdict"] != "FAIL"
+    assert code == 2 and figures["verdict"] == "FAIL"
+
+
 @pytest.mark.parametrize(
     "options, words",
     [
@@ -328,6 +347,7 @@ def test_a_right_pair_smaller_than_the_tolerance_passes_and_a_still_surrogate_fa
 
     right = judged(pair_files(tmp_path))
     assert right.passed, right.judgement.line
+    assert right.verdicts == ("CANNOT JUDGE", "CANNOT JUDGE", "PASS")
     assert right.surrogate.judgement.verdict == "CANNOT JUDGE"
     assert right.internal.judgement.verdict == "CANNOT JUDGE"
     t = camera_clock()

@@ -14,7 +14,7 @@ from ..organ_motion.measured_verdict import (
 )
 from .pair_judgement import MAX_RELATIVE_LATENCY_S, verify_pair
 from .pair_report import write_pair
-from .verify_command import ENCODER_LOG_SUFFIX
+from .verify_command import ENCODER_LOG_SUFFIX, exit_status
 
 #: ``--surrogate``'s word for the motion's external signal made by a correlation model
 #: (:func:`~.external_reference.model_reference`) instead of a recorded file.
@@ -312,7 +312,7 @@ def cmd_verify_pair(args) -> int:
     for note in pair.notes:
         print(note)
     print(f"wrote {', '.join(str(p) for p in written)}")
-    return 0 if pair.passed else 2
+    return exit_status(pair.verdicts)
 
 
 def _on_the_motions_clock(surrogate, reference, path):

@@ -147,6 +147,20 @@ class PairVerification:
         fidelities = all(ver.judgement.verdict != "FAIL" for ver in (self.internal, self.surrogate))
         return bool(fidelities and self.judgement.passed)
 
+    @property
+    def verdicts(self) -> tuple[str, str, str]:
+        """The pair's three verdicts: the internal target's motion, the surrogate's (PASS, FAIL
+        or CANNOT JUDGE each) and the relative latency's (PASS or FAIL). The command's exit
+        status is the worst of them, as ``verify``'s of one motion: a motion that cannot be
+        judged is not a pair that passed."""
+        relative = "PASS" if self.judgement.passed else "FAIL"
+        return self.internal.judgement.verdict, self.surrogate.judgement.verdict, relative
+
+    @property
+    def verdict(self) -> str:
+        """The worst of :attr:`verdicts`: FAIL, else CANNOT JUDGE, else PASS."""
+        return next((v for v in ("FAIL", "CANNOT JUDGE") if v in self.verdicts), "PASS")
+
     def as_dict(self) -> dict:
         """The pair's figures as JSON values: the verdicts, the relative latency with its
         definition, each motion's file, shift, latency, RMS error and verdict line."""
@@ -167,6 +181,7 @@ class PairVerification:
             }
 
         return {
+            "verdict": self.verdict,
             "passed": self.passed,
             "relative_latency_s": self.relative_latency_s,
             "definition": DEFINITION,
