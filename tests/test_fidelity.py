@@ -445,14 +445,22 @@ def test_the_rms_of_translation_and_rotation():
 
 
 def test_the_tolerance_s_units_and_the_verdict_line():
-    """Units in any case, exponents with E; an unknown unit or an infinite number refused. The
+    """Units as written or all in capitals, exponents with E; an unknown unit, a unit in mixed
+    case (0.05Mm is no millimetre), an infinite number or a tolerance past 1 m or 180 deg
+    refused, each naming the option. The
     verdict compares translations with the length and rotations with the angle, an RMS equal to
     the tolerance within it, and says so in one line with the largest of each kind."""
     assert fd.parse_tolerance("0.1MM,1E-3RAD") == pytest.approx((1e-4, 1e-3))
     assert fd.parse_tolerance(" 2 um , 5e+1 URAD ") == pytest.approx((2e-6, 5e-5))
-    for bad in ("1mm,1furlong", "1e999mm,1deg", "1mm,1deg,1mm"):
-        with pytest.raises(InvalidConfigError, match="one length and one angle"):
+    for bad in ("1mm,1furlong", "1e999mm,1deg", "1mm,1deg,1mm", "0.05Mm,1deg", "1mm,1Deg"):
+        with pytest.raises(InvalidConfigError, match="^--tolerance: one length and one angle"):
             fd.parse_tolerance(bad)
+    with pytest.raises(InvalidConfigError, match="the unit 'Mm' is not one of m, cm, mm, um, rad"):
+        fd.parse_tolerance("0.05Mm,1deg")
+    assert fd.parse_tolerance("1m,180deg") == pytest.approx((1.0, math.pi))  # the largest
+    for bad in ("1e300m,1e300deg", "1.01m,1deg", "1mm,181deg"):
+        with pytest.raises(InvalidConfigError, match="^--action-level: at most 1 m and 180 deg"):
+            fd.parse_tolerance(bad, "--action-level")
     fid = {"rms": [1e-5, 2e-5, 1e-5, 3e-4, 9e-6, 1e-6], "window_s": [5.0, 10.0]}
     ok, line = fd.verdict(fid, (3e-4, 2e-5))  # X's 0.3 mm and theta's 20 urad exactly
     assert ok and line == (

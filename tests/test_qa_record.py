@@ -151,7 +151,17 @@ def test_the_qatrack_upload_procedure_reads_the_record(tmp_path, exports):
     "options, words",
     [
         (["--operator", "X"], "--operator is for the QA record: add --record"),
-        (["--record", "--action-level", "0.3mm,0.1deg"], "--action-level: its length"),
+        (
+            ["--record", "--action-level", "0.3mm,0.1deg"],
+            "--action-level: its length must be above 0 and at most the --tolerance's 0.2 mm, "
+            "got 0.3 mm",
+        ),
+        (
+            ["--record", "--action-level", "0.1mm,0.2deg"],
+            "--action-level: its angle must be above 0 and at most the --tolerance's 0.1 deg, "
+            "got 0.2 deg",
+        ),
+        (["--record", "--action-level", "0.05Mm,0.1deg"], "--action-level: one length and one"),
     ],
 )
 def test_record_options_are_checked_before_any_work(tmp_path, exports, capsys, options, words):

@@ -330,7 +330,9 @@ def _record_context(args, tolerance):
         raise InvalidConfigError(
             "--save-registration gives no verdict to record: leave --record out"
         )
-    action = None if args.action_level is None else parse_tolerance(args.action_level)
+    action = (
+        None if args.action_level is None else parse_tolerance(args.action_level, "--action-level")
+    )
     context = RecordContext(
         operator=args.operator,
         phantom_serial=args.phantom_serial,

@@ -89,11 +89,15 @@ class RecordContext:
                     f"{option}: {len(text)} characters, at most {MAX_TEXT} in a record"
                 )
         if self.action_level is not None:
-            for value, limit, what in zip(self.action_level, tolerance, ("length", "angle")):
+            from .fidelity import format_angle, format_length
+
+            for value, limit, what, shown in zip(
+                self.action_level, tolerance, ("length", "angle"), (format_length, format_angle)
+            ):
                 if not 0.0 < value <= limit:
                     raise InvalidConfigError(
                         f"--action-level: its {what} must be above 0 and at most the "
-                        f"tolerance's ({limit:g}), got {value:g}"
+                        f"--tolerance's {shown(limit)}, got {shown(value)}"
                     )
 
 
