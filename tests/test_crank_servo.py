@@ -457,3 +457,153 @@ def test_a_crank_at_rest_is_pushed_with_its_share_of_the_friction(geometry, shar
     assert torques[share][0] - torques[0.0][0] == pytest.approx(push, rel=1e-9, abs=1e-15)
     if share:
         assert push > 0.9 * share * 0.2  # the push is saturated: the share of F, no more
+
+
+def test_the_settings_are_what_the_step_runs_with(geometry):
+    """The defaults and given settings read back as the step's constants, each worked out here
+    from the docstring's meaning (the friction held when tau_F = 0; the estimate's bounds a
+    factor of 2 either side of a friction given, within friction_max_Nm)."""
+    loop = design.design_loop(0.01, 1, 3.0, 15.0, 10.0)
+    ctrl = CrankServoController(geometry, loop)
+    c = ctrl.constants
+    assert ctrl.status_names == SERVO_STATUS_NAMES and len(SERVO_STATUS_NAMES) == 4
+    assert ctrl.steps_per_schedule == 10  # 0.1 s at 10 ms
+    expected = {
+        "h": 0.01, "lead": 0.0, "friction_rate": 2e-3, "k_c": 2 * math.pi * 3.0,
+        "adapt": 1 / 2.0, "adapt_min_rate": 10 * 2e-3, "friction_min": 0.0,
+        "friction_max": 1.0, "viscous": 0.0, "limit": math.inf, "delay": 1.0, "dob": 0.0,
+        "memory": math.exp(-0.01 / 4.0), "share": 1.0,
+    }  # fmt: skip
+    assert c == pytest.approx(expected, rel=1e-12)
+    given = CrankServoController(
+        geometry,
+        loop,
+        offset_s=0.0099,
+        lead_s=1.0,
+        friction_direction_hz=5.0,
+        friction_adaptation_s=0.0,
+        friction_Nm=np.full(6, 0.2),
+        friction_max_Nm=0.3,
+        viscous=0.04,
+        torque_limit_Nm=2.5,
+        friction_direction_share=0.25,
+        disturbance_feedback=1.0,
+        schedule_period_s=0.026,
+    )
+    c = given.constants
+    assert given.steps_per_schedule == 3  # 26 ms rounds to 3 periods
+    assert (c["lead"], c["k_c"], c["adapt"], c["viscous"]) == pytest.approx(
+        (1.0, 2 * math.pi * 5.0, 0.0, 0.04)
+    )
+    assert (c["friction_min"], c["friction_max"]) == pytest.approx(
+        (0.1, 0.3)
+    )  # 0.2 / 2, min(0.3, 0.4)
+    assert (c["limit"], c["share"], c["dob"]) == (2.5, 0.25, 1.0)
+
+
+@pytest.mark.parametrize(
+    "name, good, bad",
+    [
+        ("offset_s", 0.0, -1e-9),
+        ("offset_s", 0.01 - 1e-9, 0.01),
+        ("lead_s", 0.0, -1e-9),
+        ("lead_s", 1.0, 1.0 + 1e-9),
+        ("friction_rate_rad_s", 1e-9, 0.0),
+        ("friction_direction_hz", 0.0, -1e-9),
+        ("friction_adaptation_s", 0.0, -1e-9),
+        ("friction_max_Nm", 0.0, -1e-9),
+        ("viscous", 0.0, -1e-9),
+        ("torque_limit_Nm", 1e-9, 0.0),
+        ("friction_direction_share", 0.0, -1e-9),
+        ("friction_direction_share", 1.0, 1.0 + 1e-9),
+        ("disturbance_feedback", 0.0, -1e-9),
+        ("disturbance_feedback", 1.0, 1.0 + 1e-9),
+        ("schedule_period_s", 1e-9, 0.0),
+    ],
+)
+def test_each_setting_is_taken_at_its_bound_and_refused_past_it_by_name(geometry, name, good, bad):
+    loop = design.design_loop(0.01, 1, 3.0, 15.0, 10.0)
+    CrankServoController(geometry, loop, **{name: good})
+    with pytest.raises(InvalidConfigError, match=f"^{name} must be"):
+        CrankServoController(geometry, loop, **{name: bad})
+
+
+def test_the_driver_passes_each_option_to_the_controller(geometry):
+    """Every option of the driver read back from the controller it makes: the loop designed for
+    the context's period and delay at its bandwidths, the friction's settings, the bound of the
+    friction believed (half the lesser of the servo's peak and the torque limit), the torque
+    limit, the sample's offset."""
+    servo = catalogue_motor("XM430-W350-T").servo
+    driver = CrankServoDriver(
+        bandwidth_hz=2.5,
+        observer_bandwidth_hz=12.0,
+        integral_ratio=4.0,
+        friction_scale=2.0,
+        friction_rate_rad_s=3e-3,
+        friction_adaptation_s=1.5,
+        disturbance_feedback=0.5,
+        schedule_period_s=0.05,
+        friction_direction_hz=2.0,
+        friction_direction_share=0.5,
+    )
+    ctrl = driver.make(_context(geometry, servo, d=2, limit=servo.peak_torque_Nm + 1.0))
+    loop = design.design_loop(0.01, 2, 2.5, 12.0, 4.0)
+    np.testing.assert_array_equal(ctrl.loop.K, loop.K)
+    np.testing.assert_array_equal(ctrl.loop.L, loop.L)
+    c = ctrl.constants
+    bound = 0.5 * servo.peak_torque_Nm  # the peak is the lesser
+    assert c["friction_max"] == pytest.approx(min(bound, 2.0 * 2.0 * servo.coulomb_friction_Nm))
+    believed = min(2.0 * servo.coulomb_friction_Nm, bound)
+    np.testing.assert_allclose(ctrl.friction_estimate(ctrl.CreateDefaultContext()), believed)
+    assert c["lead"] == pytest.approx(2.5 * 0.01 - 0.001)
+    assert (c["friction_rate"], c["adapt"], c["dob"]) == pytest.approx((3e-3, 1 / 1.5, 0.5))
+    assert (c["k_c"], c["share"], c["delay"]) == pytest.approx((2 * math.pi * 2.0, 0.5, 2.0))
+    assert c["limit"] == servo.peak_torque_Nm + 1.0 and ctrl.steps_per_schedule == 5
+    assert driver.summary() == {
+        "bandwidth_hz": 2.5,
+        "observer_bandwidth_hz": 12.0,
+        "friction_scale": 2.0,
+    }
+    # without a delay the torque acts over the next period: its middle, half a period on
+    assert CrankServoDriver().make(_context(geometry, servo, d=0)).constants["lead"] == 0.005
+
+
+@pytest.mark.parametrize(
+    "name, good, bad",
+    [
+        ("bandwidth_hz", 1e-6, 0.0),
+        ("observer_bandwidth_hz", 1e-6, 0.0),
+        ("integral_ratio", 1e-6, 0.0),
+        ("friction_scale", 0.0, -1e-9),
+        ("friction_scale", 5.0, 5.0 + 1e-9),
+        ("friction_rate_rad_s", 10.0, 10.0 + 1e-9),
+        ("friction_rate_rad_s", 1e-9, 0.0),
+        ("friction_direction_hz", 0.0, -1e-9),
+        ("friction_direction_hz", 1e3, 1e3 + 1e-6),
+        ("friction_direction_share", 0.0, -1e-9),
+        ("friction_direction_share", 1.0, 1.0 + 1e-9),
+        ("friction_adaptation_s", 1e4, 1e4 + 1e-6),
+        ("disturbance_feedback", 1.0, 1.0 + 1e-9),
+        ("disturbance_feedback", 0.0, -1e-9),
+    ],
+)
+def test_each_option_of_the_driver_is_taken_at_its_bound_and_refused_past_it(name, good, bad):
+    """Each bound of :meth:`CrankServoDriver.validate`, at the bound (taken: the design then
+    refuses a bandwidth the sampling cannot carry on its own terms, so those take a value
+    well within) and just past it (refused, named with the prefix)."""
+    if name.endswith("_hz") and name != "friction_direction_hz":
+        good = 1.0  # the design's own limit is tested apart
+    dataclasses.replace(CrankServoDriver(), **{name: good}).validate(0.01, 1)
+    driver = dataclasses.replace(CrankServoDriver(), **{name: bad})
+    with pytest.raises(InvalidConfigError, match=rf"^ctl\.{name} must be"):
+        driver.validate(0.01, 1, prefix="ctl.")
+
+
+def test_a_delay_the_servo_cannot_carry_is_refused_and_a_design_error_is_prefixed():
+    from stewart_drake.control.servo.driver import MAX_DELAY_PERIODS
+
+    CrankServoDriver().validate(0.01, MAX_DELAY_PERIODS)
+    with pytest.raises(InvalidConfigError, match=f"of {MAX_DELAY_PERIODS + 1} periods is more"):
+        CrankServoDriver().validate(0.01, MAX_DELAY_PERIODS + 1)
+    with pytest.raises(InvalidConfigError, match=r"^ctl\.\S"):
+        CrankServoDriver(bandwidth_hz=30.0).validate(0.01, 1, prefix="ctl.")

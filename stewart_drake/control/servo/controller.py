@@ -15,7 +15,7 @@ from ...base.errors import InvalidConfigError
 from ...robot import kinematics, path_kernels, statics
 from ...robot.geometry import X_HOME, StewartGeometry
 from ...robot.single_pose import leg_constants
-from .design import CrankLoop, design_loop
+from .design import CrankLoop
 
 #: The friction fit's memory, s: longer than a breath's half (a fit needs both senses of motion).
 FRICTION_MEMORY_S = 4.0
@@ -256,20 +256,13 @@ class CrankServoController(LeafSystem):
             state,
         )
 
+    @property
+    def constants(self) -> dict[str, float]:
+        """{name: value} of what the compiled step runs with (:data:`.kernels.CONSTANTS`: the
+        period, the lead, the friction's rate, bounds and adaptation, the torque limit, the
+        delay, ...), SI units: the settings as the controller took them, to read back."""
+        return dict(zip(_kernels().CONSTANTS, map(float, self._c)))
+
     def friction_estimate(self, context) -> np.ndarray:
         """(6,) the Coulomb friction the controller believes now, N m (this system's context)."""
         return context.get_discrete_state(self._state).value()[self._parts["friction"]].copy()
-
-
-def make_crank_servo(
-    geometry: StewartGeometry,
-    h: float,
-    delay_periods: int,
-    bandwidth_hz: float,
-    observer_bandwidth_hz: float,
-    integral_ratio: float,
-    **kwargs,
-) -> CrankServoController:
-    """Design the loop (:func:`~.design.design_loop`) and build the controller on it."""
-    loop = design_loop(h, delay_periods, bandwidth_hz, observer_bandwidth_hz, integral_ratio)
-    return CrankServoController(geometry, loop, **kwargs)
