@@ -204,3 +204,61 @@ def test_a_loop_whose_gains_do_not_fit_the_table_is_refused_when_the_scenario_is
         scenario.validate()
     scenario.bus.position_loop = ServoPositionLoop(8.0, 1.0)
     scenario.validate()
+
+
+def test_the_driver_makes_the_streamer_of_its_context():
+    """What make() builds, read back: the context's robot, period and sample offset (its update
+    event's), the lead of lead_s (extra_lead_s on top), the start pose's goals; a lead below 0
+    (no delay, a long plant step) is 0."""
+    geometry = StewartGeometry()
+    context = ControllerContext(
+        geometry=geometry,
+        period_s=0.02,
+        offset_s=1e-3,
+        plant_time_step_s=2e-3,
+        x_initial=X0,
+        x_dot_initial=V0,
+        delay_periods=2,
+    )
+    driver = ServoPositionDriver(extra_lead_s=0.004)
+    system = driver.make(context)
+    assert system.geometry is geometry and system.period_s == 0.02
+    assert system.lead_s == pytest.approx(3 * 0.02 - 2e-3 + 0.004, abs=1e-15)
+    events = system.GetUniquePeriodicDiscreteUpdateAttribute()
+    assert (events.period_sec(), events.offset_sec()) == (0.02, 1e-3)
+    goal = system.GetOutputPort("crank_goal").Eval(system.CreateDefaultContext())
+    np.testing.assert_allclose(goal[:6], ik(geometry, (X0 + V0 * 0.02)[None, :])[0], atol=1e-12)
+    assert driver.summary() == {"extra_lead_s": 0.004}
+    assert driver.validate(0.02, 4) is driver
+    late = ControllerContext(
+        geometry=geometry, period_s=0.001, offset_s=0.0, plant_time_step_s=0.002,
+        x_initial=X_HOME, delay_periods=0,
+    )  # fmt: skip
+    assert ServoPositionDriver().lead_s(late) == 0.0
+
+
+@pytest.mark.parametrize(
+    "extra, delay, words",
+    [
+        (1.0 + 1e-9, 1, r"^ctl\.extra_lead_s must be"),
+        (-1e-9, 1, r"^ctl\.extra_lead_s must be"),
+        (0.0, 5, "a computation delay of 5 periods: the goals would lead"),
+    ],
+)
+def test_the_drivers_option_and_delay_are_refused_past_their_bounds(extra, delay, words):
+    ServoPositionDriver(extra_lead_s=1.0).validate(0.01, 4, prefix="ctl.")  # both at the bound
+    with pytest.raises(InvalidConfigError, match=words):
+        ServoPositionDriver(extra_lead_s=extra).validate(0.01, delay, prefix="ctl.")
+
+
+@pytest.mark.parametrize(
+    "period, lead, named",
+    [(0.0, 0.01, "period_s"), (1.0 + 1e-9, 0.01, "period_s"), (H, -1e-9, "lead_s"),
+     (H, 1.0 + 1e-9, "lead_s")],
+)  # fmt: skip
+def test_the_streamer_refuses_a_period_or_lead_past_its_bounds(period, lead, named):
+    geometry = StewartGeometry()
+    CrankGoalStreamer(geometry, 1.0, 0.0, 1.0, X_HOME)  # at the bounds: taken
+    CrankGoalStreamer(geometry, H, 0.0, 0.0, X_HOME)
+    with pytest.raises(InvalidConfigError, match=f"^{named} must be"):
+        CrankGoalStreamer(geometry, period, 0.0, lead, X_HOME)
