@@ -164,6 +164,8 @@ def test_a_loop_that_misses_every_deadline_says_so_in_a_few_lines(tmp_path, monk
     assert [int(line.split()[2]) for line in said] == [2**k for k in range(len(said))]
     assert "the worst 15.0 ms late at t = " in said[0] and "by cause: " in said[-1]
     assert "the period did not hold" in out
+    # the session's figures say whose pose they are: the encoders', not the platform's
+    assert "\nRMS tracking error of the pose the encoders read over t in [" in "\n" + out
 
 
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGQUIT], ids=lambda s: s.name)

@@ -460,7 +460,7 @@ def _print_run(run, scenario, sd, emulator) -> None:
     from ..run.metrics import format_metrics
 
     if run.metrics is not None:
-        print(format_metrics(run.metrics))
+        print(format_metrics(run.metrics, "the pose the encoders read"))
         if emulator is not None and sd is not None:
             print("\n".join(_truth_lines(scenario, sd, emulator, run.metrics)))
     if run.timing_lines:

@@ -257,10 +257,13 @@ def window_means(
     return sums / counts
 
 
-def format_metrics(metrics: dict) -> str:
-    """Human-readable summary (mrad / mm / N m) of :func:`~.metrics.compute_metrics`'s dict."""
+def format_metrics(metrics: dict, whose: str = "") -> str:
+    """Human-readable summary (mrad / mm / N m) of :func:`~.metrics.compute_metrics`'s dict;
+    ``whose``: whose pose the error is of, said in the first line (a robot's session measures
+    the pose its encoders read, not the platform's)."""
     w0, w1 = metrics["window_s"]
-    lines = [f"RMS tracking error over t in [{w0:g}, {w1:g}] s:"]
+    of = f" of {whose}" if whose else ""
+    lines = [f"RMS tracking error{of} over t in [{w0:g}, {w1:g}] s:"]
     for axis, unit, v, p in zip(
         AXIS_NAMES, AXIS_UNITS, metrics["rms_error"], metrics["peak_error"]
     ):
