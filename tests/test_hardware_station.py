@@ -205,6 +205,13 @@ def test_the_driver_writes_then_reads_once_a_period_and_holds_the_pose_of_the_an
     np.testing.assert_allclose(x[:6], x0, atol=1e-4)
     summary = driver.timing_summary()
     assert summary["periods"] == periods and summary["period"]["n"] == periods - 1
+    # The jitter is how far each period is from the nominal, either way: never below 0 (a
+    # "worst -0.658 ms" read as a period early by that much, as the largest).
+    jitter = summary["jitter"]
+    assert jitter["worst"] >= jitter["p99"] >= jitter["median"] >= 0.0
+    assert jitter["worst"] == pytest.approx(
+        max(abs(summary["period"]["worst"] - H), jitter["worst"]), abs=0
+    )
     # The first period's measurement is the seed's, apart (read before the loop started).
     assert summary["nominal"] == H and summary["age"]["n"] == periods - 1
     assert summary["first_age"] == driver.timing.rows()[0, 4] > 0

@@ -159,7 +159,7 @@ class LoopTiming:
         return np.concatenate([self._rows[k:], self._rows[:k]])
 
     def summary(self) -> dict:
-        """{"period", "jitter" (period - nominal), "read", "write" (the bus's round trips),
+        """{"period", "jitter" (|period - nominal|: a period short or long alike), "read", "write" (the bus's round trips),
         "age" (of the measurement when its torque was written, from the second period on),
         "late" (start - due), "cpu" (the loop thread's CPU time a period), "wait" (its time
         runnable but not running a period): each :func:`stats`, s; "first_age": the first
@@ -173,7 +173,7 @@ class LoopTiming:
         first = self.count <= len(self._rows)  # the ring still holds the first period
         return {
             "period": stats(period),
-            "jitter": stats(period - self.period_s),
+            "jitter": stats(np.abs(period - self.period_s)),
             "read": stats(r[:, _READ]),
             "write": stats(r[:, _WRITE]),
             "age": stats(r[1:, _AGE] if first else r[:, _AGE]),
