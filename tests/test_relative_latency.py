@@ -313,6 +313,18 @@ def test_the_pair_s_exit_status_is_the_worst_of_its_three_verdicts(tmp_path, cap
 
 
 @pytest.mark.parametrize(
+    "option", [["--record"], ["--operator", "A. Physicist"], ["--action-level", "0.5mm,0.5deg"]]
+)
+def test_a_pair_refuses_the_records_options_before_any_work(tmp_path, capsys, option):
+    """A record is of one motion's verdict; a pair has three: --record and the options it takes
+    are refused in one line, nothing written. Was: no record, and not a word."""
+    code, figures = run(tmp_path, *pair_files(tmp_path), *option)
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2 and figures is None and not (tmp_path / "out").exists()
+    assert f"{option[0]} records one motion's verdict, and a pair has three" in err, err
+
+
+@pytest.mark.parametrize(
     "options, words",
     [
         (["--measured-surrogate", "X.csv"], "--measured-surrogate judges the motion with its "),

@@ -170,9 +170,10 @@ def _check_pair_options(args) -> None:
         InvalidConfigError: --surrogate-param without ``--surrogate model``, or a model refused
             (:func:`~stewart_drake.station.surrogate.report.correlation_model`); --surrogate-map
             with a model; a surrogate without its measurement or the reverse, several
-            --measured, --save-registration, an encoder log beside a tracker's file (not one
-            clock) or with --measured-surrogate-columns or -map (its columns are its own),
-            --frame other than axes or base.
+            --measured, --save-registration, a QA record's options (``--record`` and those it
+            takes: a record is of one motion's verdict), an encoder log beside a tracker's file
+            (not one clock) or with --measured-surrogate-columns or -map (its columns are its
+            own), --frame other than axes or base.
     """
     if args.surrogate == MODEL:
         from ..station.surrogate.report import correlation_model
@@ -203,6 +204,22 @@ def _check_pair_options(args) -> None:
         )
     if args.save_registration:
         raise InvalidConfigError("--save-registration registers a tracker: leave --surrogate out")
+    record = [
+        option
+        for option, value in (
+            ("--record", args.record),
+            ("--action-level", args.action_level),
+            ("--operator", args.operator),
+            ("--phantom-serial", args.phantom_serial),
+            ("--notes", args.notes),
+        )
+        if value
+    ]
+    if record:
+        raise InvalidConfigError(
+            f"{record[0]} records one motion's verdict, and a pair has three: leave --surrogate "
+            "out and verify each motion alone with --record"
+        )
     logs = [is_encoder_log(p) for p in (args.measured[0], args.measured_surrogate)]
     if logs[0] != logs[1]:
         log, other = (
