@@ -172,3 +172,43 @@ def test_record_options_are_checked_before_any_work(tmp_path, exports, capsys, o
     assert code == 2
     assert words in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_file_changed_while_it_is_judged_gets_no_record(tmp_path, exports, capsys, monkeypatch):
+    """The record's SHA-256 must be of the bytes judged: a measured file changed after it was
+    read (here as its report is written) is refused by name, and no record is left. Was: the
+    record hashed the changed file."""
+    import shutil
+
+    from stewart_drake.organ_motion import verification_report
+
+    export = Path(shutil.copy(exports[0], tmp_path / "export.csv"))
+    write = verification_report.write_verification
+
+    def write_then_change(*args, **kw):
+        written = write(*args, **kw)
+        with open(export, "a") as f:  # another program appends a line meanwhile
+            f.write("\n")
+        return written
+
+    monkeypatch.setattr(verification_report, "write_verification", write_then_change)
+    code, pdfs, jsons = record(tmp_path, export)
+    err = capsys.readouterr().err
+    assert code == 2 and pdfs == jsons == [], err
+    assert "export.csv" in err and "changed while it was judged" in err
+    assert "no record written" in err
+
+
+def test_an_interrupted_record_leaves_neither_file(tmp_path, exports, monkeypatch, ctrl_c):
+    """Ctrl-C while the PDF is drawn: neither the PDF nor the JSON of that record stays (a JSON
+    saying PASS beside an empty PDF was left)."""
+    from stewart_drake.organ_motion import qa_record
+
+    def drawn_then_interrupted(pdf, data, figure):
+        Path(pdf).write_bytes(b"%PDF-1.4 cut")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(qa_record, "record_pdf", drawn_then_interrupted)
+    code, pdfs, jsons = record(tmp_path, exports[0])
+    assert code == 130 and pdfs == jsons == []
+    assert list((tmp_path / "out" / "records").iterdir()) == []

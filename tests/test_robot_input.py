@@ -543,9 +543,9 @@ def test_a_run_ended_within_its_first_logged_period_says_so_and_writes_nothing(
 
 
 def test_the_emulator_outlives_a_signal_to_the_process_group():
-    """A Ctrl-C, Ctrl-\\ or SIGTERM to the job's process group reaches the emulator's process too: it
-    ignores them (the session turns the torque off through it and must find it answering),
-    answers the bus after them, and ends when its parent stops it."""
+    """A Ctrl-C, Ctrl-\\ or SIGTERM to the job's process group reaches the emulator's process
+    too: it ignores them (the session turns the torque off through it and must find it
+    answering), answers the bus after them, and ends when its parent stops it."""
     from stewart_drake.live.emulator_process import EmulatorProcess
 
     with EmulatorProcess(x0=X_HOME, start_timeout_s=HANG_S) as emu:

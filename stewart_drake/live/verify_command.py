@@ -234,6 +234,7 @@ def cmd_verify(args) -> int:
     for stem in stems:
         for suffix in (".md", ".png", ".json"):
             check_replaceable(out / f"{stem}{suffix}")
+    held = _identities(args, context)
     measured = []
     for path in args.measured:
         print(f"verify: reading {path}", file=sys.stderr, flush=True)
@@ -275,8 +276,14 @@ def cmd_verify(args) -> int:
 
             trace = [args.motion] if is_trace_file(args.motion) else []
             inputs = [m.path, *trace, *([args.registration] if args.registration else [])]
+            identities = tuple(held[str(p)] for p in inputs if str(p) in held)
             pdf, record = write_record(
-                ver, out, tolerance, replace(context, inputs=tuple(inputs)), png, stem
+                ver,
+                out,
+                tolerance,
+                replace(context, inputs=tuple(inputs), identities=identities),
+                png,
+                stem,
             )
             print(f"wrote the QA record {pdf} and {record}")
         results.append(ver)
@@ -343,6 +350,20 @@ def _record_context(args, tolerance):
     context.check(tolerance)
     _reportlab()
     return context
+
+
+def _identities(args, context) -> dict:
+    """{path: :func:`~stewart_drake.organ_motion.qa_record.file_identity`} of every file a
+    record would name, taken before any is read ({} without ``--record``): the record holds
+    the hash of the bytes judged, or refuses to be written."""
+    if context is None:
+        return {}
+    from ..execution.options import is_trace_file
+    from ..organ_motion.qa_record import file_identity
+
+    paths = [*args.measured, *([args.motion] if is_trace_file(args.motion) else [])]
+    paths += [args.registration] if args.registration else []
+    return {str(p): file_identity(p) for p in paths}
 
 
 def _earlier_verdict(path) -> str:

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError, MissingExtraError
+from ..base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
 from .fidelity import AXES, format_angle, format_length
 
 #: The record's JSON layout; a reader checks it before reading the values.
@@ -62,7 +62,9 @@ class RecordContext:
         scenario: the phantom's scenario (its name or file). action_level: (m, rad) per-axis
             RMS errors beyond which a result within tolerance is ACTION, or None (no action
             level). inputs: the files the verdict read (the measured file, the reference's
-            trace, the registration).
+            trace, the registration). identities: each input's :func:`file_identity` taken
+            before it was read, or none: the record's must be the same, or the file changed
+            while it was judged and no record is written.
     """
 
     operator: str = ""
@@ -71,6 +73,7 @@ class RecordContext:
     scenario: str = ""
     action_level: tuple | None = None
     inputs: tuple = ()
+    identities: tuple = ()
 
     def check(self, tolerance: tuple[float, float]) -> None:
         """Refuse, before any work, texts longer than :data:`MAX_TEXT` and an action level
@@ -203,7 +206,7 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
             "window_s": [float(v) for v in fid["window_s"]],
             "reference": ver.name,
             "measured_file": Path(ver.measured.path).name,
-            "inputs": [file_identity(p) for p in context.inputs],
+            "inputs": _unchanged_inputs(context),
             "frames": ver.frame.words(ver.offsets, ver.measured.measured),
             "clock": ver.clock,
             "clock_offset_s": ver.clock_offset_s,
@@ -219,6 +222,28 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
         }
     )
     return out
+
+
+def _unchanged_inputs(context: RecordContext) -> list:
+    """The inputs' :func:`file_identity`, each the one taken before the verdict read it.
+
+    Raises:
+        CorruptFileError: an input whose bytes changed since (the record would give the hash
+            of a file the verdict did not judge).
+    """
+    now = [file_identity(p) for p in context.inputs]
+    before = {i["path"]: i for i in context.identities}
+    for i in now:
+        then = before.get(i["path"])
+        if then is not None and then["sha256"] != i["sha256"]:
+            raise CorruptFileError(
+                i["path"],
+                "input of the verdict",
+                f"it changed while it was judged (SHA-256 {then['sha256'][:12]}... before, "
+                f"{i['sha256'][:12]}... now): no record written",
+                "verify it again",
+            )
+    return now
 
 
 def _exclusive(folder: Path, stem: str, suffixes: tuple) -> tuple:
@@ -266,8 +291,13 @@ def write_record(ver, out, tolerance, context: RecordContext, figure: Path, stem
     when = datetime.now().astimezone()
     data = results_data(ver, tolerance, context, when)
     pdf, js = _exclusive(Path(out) / "records", f"{stem}_{when:%Y%m%dT%H%M%S}", (".pdf", ".json"))
-    js.write_text(json.dumps(data, indent=2) + "\n")
-    record_pdf(pdf, data, figure)
+    try:  # the PDF first: a JSON saying PASS never stands beside an empty or cut PDF
+        record_pdf(pdf, data, figure)
+        js.write_text(json.dumps(data, indent=2) + "\n")
+    except BaseException:  # an error, Ctrl-C: neither of the two files this call made stays
+        for p in (pdf, js):
+            p.unlink(missing_ok=True)
+        raise
     return pdf, js
 
 

@@ -159,14 +159,14 @@ class LoopTiming:
         return np.concatenate([self._rows[k:], self._rows[:k]])
 
     def summary(self) -> dict:
-        """{"period", "jitter" (|period - nominal|: a period short or long alike), "read", "write" (the bus's round trips),
-        "age" (of the measurement when its torque was written, from the second period on),
-        "late" (start - due), "cpu" (the loop thread's CPU time a period), "wait" (its time
-        runnable but not running a period): each :func:`stats`, s; "first_age": the first
-        period's measurement's age, s (NaN when not kept): a reading taken before the loop
-        started (a session's seed, then its checks, a wait for a first sample), not a late
-        period's; "late_causes" {cause: periods} of the late periods (:data:`LATE_FRACTION`);
-        "periods", "nominal"}."""
+        """{"period", "jitter" (|period - nominal|: a period short or long alike), "read", "write"
+        (the bus's round trips), "age" (of the measurement when its torque was written, from the
+        second period on), "late" (start - due), "cpu" (the loop thread's CPU time a period), "wait"
+        (its time runnable but not running a period): each :func:`stats`, s; "first_age": the first
+        period's measurement's age, s (NaN when not kept): a reading taken before the loop started
+        (a session's seed, then its checks, a wait for a first sample), not a late period's;
+        "late_causes" {cause: periods} of the late periods (:data:`LATE_FRACTION`); "periods",
+        "nominal"}."""
         r = self.rows()
         period = r[1:, _PERIOD]
         causes = r[:, _CAUSE][np.isfinite(r[:, _CAUSE])].astype(int)
