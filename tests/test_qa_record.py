@@ -212,3 +212,34 @@ def test_an_interrupted_record_leaves_neither_file(tmp_path, exports, monkeypatc
     code, pdfs, jsons = record(tmp_path, exports[0])
     assert code == 130 and pdfs == jsons == []
     assert list((tmp_path / "out" / "records").iterdir()) == []
+
+
+@pytest.mark.parametrize("kind", ["file", "link to a file", "dangling link", "read-only"])
+def test_a_records_folder_that_cannot_take_the_record_is_refused_before_any_work(
+    tmp_path, exports, capsys, kind
+):
+    """OUT/records a file, a link to one, a link to nothing or a folder that cannot be written:
+    refused in one line naming it before the verification runs (was: PASS printed, then a raw
+    [Errno 17] or [Errno 13] and exit 1)."""
+    import os
+
+    records = tmp_path / "out" / "records"
+    records.parent.mkdir()
+    if kind == "file":
+        records.write_text("not a folder\n")
+    elif kind == "link to a file":
+        (tmp_path / "elsewhere.txt").write_text("x\n")
+        records.symlink_to(tmp_path / "elsewhere.txt")
+    elif kind == "dangling link":
+        records.symlink_to(tmp_path / "gone")
+    else:
+        if os.geteuid() == 0:
+            pytest.skip("root writes in a read-only folder")
+        records.mkdir()
+        records.chmod(0o555)
+    code, _, _ = record(tmp_path, exports[0])
+    out, err = capsys.readouterr()
+    assert code == 2, (out, err)
+    assert err.strip().splitlines()[-1].startswith("stewart-drake verify: cannot write to "), err
+    assert "records" in err and "choose another output with --out" in err
+    assert "PASS" not in out and not list((tmp_path / "out").glob("verify_*"))

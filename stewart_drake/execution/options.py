@@ -13,6 +13,7 @@ runs.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -50,15 +51,20 @@ def check_writable(folder: Path, option: str = "--out") -> None:
 
     Walks up to the nearest existing ancestor and writes a temporary file there.
     Raises:
-        InvalidConfigError: a file stands in the path, or the nearest folder is not writable.
+        InvalidConfigError: a file (or a link to one, or to nothing) stands in the path, or the
+            nearest folder is not writable.
     """
     from ..base.errors import InvalidConfigError
     from ..base.fileio import describe_mode
 
     existing = folder.absolute()
-    while not existing.exists() and existing.parent != existing:
+    while not existing.exists() and not existing.is_symlink() and existing.parent != existing:
         existing = existing.parent
     try:
+        if existing.is_symlink() and not existing.exists():
+            raise NotADirectoryError(
+                20, f"{existing} is a link to {os.readlink(existing)}, which does not exist"
+            )
         if not existing.is_dir():
             kind = describe_mode(existing.stat().st_mode)
             raise NotADirectoryError(

@@ -337,6 +337,9 @@ def _record_context(args, tolerance):
         raise InvalidConfigError(
             "--save-registration gives no verdict to record: leave --record out"
         )
+    from ..execution.options import check_writable
+
+    check_writable(Path(args.out) / "records", "--out")  # where the record goes, before any work
     action = (
         None if args.action_level is None else parse_tolerance(args.action_level, "--action-level")
     )
