@@ -158,7 +158,9 @@ def test_without_the_clocks_the_whole_shift_is_the_latency_not_judged():
     # Found modulo the 4 s period, anywhere in the shifts searched.
     off = (ver.shift_s - (CLOCK_OFFSET_S - 0.9)) % 4.0
     assert min(off, 4.0 - off) == pytest.approx(0.0, abs=1e-5)  # either side of a period
-    assert ver.searched_s == pytest.approx((-CLOCK_START_S - 9.99, -CLOCK_START_S + 4.0))
+    # The recording's start from a tenth of its 19.98 s before the motion's start (the whole
+    # recording compared, a tenth of it at most left out) to a period after.
+    assert ver.searched_s == pytest.approx((-CLOCK_START_S - 1.998, -CLOCK_START_S + 4.0))
     assert ver.judgement.passed and not ver.judgement.latency_judged
     assert "The clocks' relation was not given" in ver.removed[0]
 
@@ -309,6 +311,115 @@ def test_what_verify_refuses():
     verify(MOTION, MeasuredMotion("m.csv", "tracker", gap, positions(x), XYZ), max_gap_s=0.7)
 
 
+# -- a recording over part of a long trace, the clocks unknown -----------------------------------
+
+#: A trace of 200 s that repeats every 50 s (a 5 s breath over a slow drift), as a clinic's
+#: programmed traces repeat: a clock search can match a stretch a repeat away.
+LONG = Harmonics(
+    along("X", 2e-3, *([0.0] * 8), 5e-3),
+    period_s=50.0,
+    periodic=False,
+    end_time=200.0,
+    centre=(0.0, 0.0, 0.0, 0.0, 0.0, 0.3),
+)
+
+
+def part_of_long(stop_at=None, reversed_until=None, reference=LONG, seconds=120.0, start=80.0):
+    """(t on a tracker's clock from 1000 s, positions) of a phantom that followed ``reference``
+    from its t = ``start`` s, 60 ms late; held still from the reference's ``stop_at`` s on, or
+    running reversed about its mean until ``reversed_until``."""
+    t = 1000.0 + np.arange(int(round(seconds * 20.0))) / 20.0
+    u = t - 1000.0 + start - LATENCY_S
+    x = reference.evaluate(u)[0]
+    if stop_at is not None:
+        x[u >= stop_at] = reference.evaluate(stop_at)[0]
+    if reversed_until is not None:
+        early = u < reversed_until
+        x[early, 3:] = 2 * np.asarray(reference.centre)[3:] - x[early, 3:]
+    return t, positions(x)
+
+
+def judged(t, y, reference=LONG, **options):
+    return verify(reference, MeasuredMotion("m.csv", "tracker", t, y, XYZ), **options)
+
+
+def test_a_right_recording_over_part_of_a_long_trace_passes_whole():
+    ver = judged(*part_of_long())
+    assert ver.judgement.verdict == "PASS", ver.judgement.line
+    assert ver.shift_s == pytest.approx(-920.0 - LATENCY_S, abs=1e-3)
+    assert ver.uncompared["before"] == ver.uncompared["after"] == 0
+    assert "not compared" not in ver.judgement.line
+
+
+@pytest.mark.parametrize("how", [{"stop_at": 140.0}, {"stop_at": 170.0}, {"reversed_until": 120.0}])
+def test_a_robot_that_stopped_or_ran_reversed_for_part_of_it_fails(how):
+    """Compared whole, the stop or the reversal is in the figures: FAIL, never a PASS of the
+    part that followed (a search free to leave half the recording out matched that part a
+    repeat away and passed it)."""
+    ver = judged(*part_of_long(**how))
+    assert ver.judgement.verdict == "FAIL", ver.judgement.line
+    left = ver.uncompared["before"] + ver.uncompared["after"]
+    assert left <= 0.1 * ver.uncompared["samples"]
+
+
+def test_a_recording_longer_than_its_reference_cannot_be_judged_without_its_clock():
+    """A 60 s trace followed, then 60 s at rest after its end: no shift compares the whole
+    recording; with the clock unknown the verdict cannot judge, and says how much it would leave
+    out and what to give; with the clock given it judges the 60 s and says the rest was not
+    compared."""
+    short = Harmonics(LONG.amplitude, period_s=50.0, periodic=False, end_time=60.0,
+                      centre=LONG.centre)  # fmt: skip
+    t, y = part_of_long(stop_at=60.0, reference=short, start=0.0)
+    ver = judged(t, y, reference=short)
+    assert ver.judgement.verdict == "CANNOT JUDGE", ver.judgement.line
+    assert ver.uncompared["whole"] is False  # no shift compares 120 s against 60
+    assert "the clock found leaves" in ver.judgement.line
+    assert "give --clock-offset" in ver.judgement.line
+    given = judged(t, y, reference=short, clock_offset_s=-1000.0)
+    assert given.judgement.verdict == "PASS", given.judgement.line
+    n, after = given.uncompared["samples"], given.uncompared["after"]
+    # 60 ms late at 20 Hz: the first two samples before the reference's start (at -60 and
+    # -10 ms), and those past its 60 s from the tracker's 60.1 s to 119.95 s
+    assert (n, given.uncompared["before"], after) == (2400, 2, 1198)
+    assert given.judgement.line.endswith(
+        "; 1200 of 2400 measured samples not compared (50%: its first 100 ms, before the "
+        "reference's start; its last 59.9 s, after the reference's end)"
+    )
+
+
+def test_a_recording_that_runs_on_past_the_motion_fails_and_says_what_would_tell():
+    """The last 60 s of a 140 s trace, then 60 s at rest: without the clock it is a robot that
+    stopped as much as a recording past the motion's end. Compared whole it FAILs, and the
+    verdict says that a part matches and what to give; the clock given, it PASSes the part."""
+    short = Harmonics(LONG.amplitude, period_s=50.0, periodic=False, end_time=140.0,
+                      centre=LONG.centre)  # fmt: skip
+    t, y = part_of_long(stop_at=140.0, reference=short)
+    ver = judged(t, y, reference=short)
+    assert ver.judgement.verdict == "FAIL", ver.judgement.line
+    assert "a part of it matches, leaving " in ver.judgement.causes[-1]
+    assert "give --clock-offset" in ver.judgement.causes[-1]
+    given = judged(t, y, reference=short, clock_offset_s=-920.0)
+    assert given.judgement.verdict == "PASS", given.judgement.line
+
+
+def test_the_words_on_the_samples_left_out():
+    from stewart_drake.organ_motion.measured_verdict import uncompared_words
+
+    counts = {"samples": 1000, "before": 60, "after": 41, "before_s": 3.0, "after_s": 0.5}
+    words, why = uncompared_words({**counts, "whole": True})
+    assert words == (
+        "101 of 1000 measured samples not compared (10%: its first 3 s, before the reference's "
+        "start; its last 500 ms, after the reference's end)"
+    )
+    assert why == ""  # the clock given or searched whole: said, judged
+    words, why = uncompared_words({**counts, "whole": False})
+    assert why.startswith("the clock found leaves 101 of 1000 measured samples not compared")
+    assert "over 10% of the recording" in why and "give --clock-offset" in why
+    counts["after"] = 40  # a tenth: still judged
+    assert uncompared_words({**counts, "whole": False})[1] == ""
+    assert uncompared_words({"samples": 10, "before": 0, "after": 0, "whole": False}) == ("", "")
+
+
 # -- the steps -------------------------------------------------------------------------------------
 
 
@@ -343,15 +454,26 @@ def test_the_shifts_searched():
     ended = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=60.0)
     endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False)
     # Known clocks: the latencies up to 3 times the bound, at most 0.45 of a period.
-    assert vn._search(ended, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
-    assert vn._search(periodic, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
-    assert vn._search(periodic, t, -98.0, 1.0) == pytest.approx((-99.8, -96.2))
-    # Unknown: the recording's start from half its length before the motion's to its end.
-    assert vn._search(ended, t, None, 0.5) == pytest.approx((-110.0, -50.0))
-    assert vn._search(periodic, t, None, 0.5) == pytest.approx((-110.0, -96.0))
-    assert vn._search(endless, t, None, 0.5) == pytest.approx((-110.0, -100.0 + 3600.0))
+    assert vn._search(ended, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
+    assert vn._search(periodic, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
+    assert vn._search(periodic, t, -98.0, 1.0)[0] == pytest.approx((-99.8, -96.2))
+    # Unknown: the shifts that compare the whole 20 s recording, either end up to a tenth of it
+    # (2 s) outside the reference: its start from 2 s before the motion's to its end 2 s past
+    # the reference's (60 s), or a period on (4 s), or MAX_SEARCH_S without an end.
+    assert vn._search(ended, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 60.0 - 20.0 + 2.0))
+    assert vn._search(periodic, t, None, 0.5)[0] == pytest.approx((-102.0, -96.0))
+    assert vn._search(endless, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 3600.0))
+    # A recording longer than the reference (20 s against 5 s) fits no such shift: its start
+    # from half its length before the motion's to the end less half of it (none: 0).
     short = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=5.0)
-    assert vn._search(short, t, None, 0.5) == pytest.approx((-110.0, -100.0))
+    assert vn._search(short, t, None, 0.5) == (pytest.approx((-110.0, -100.0)), False)
+    assert vn._search(ended, t, None, 0.5)[1] and vn._search(periodic, t, -98.0, 0.5)[1]
+    # One that fits, 21 s: its start from 2 s before the motion's to 3 s after (its end 2 s
+    # past the reference's); one of 16 s, 4 s shorter than the recording, just fits.
+    fits = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=21.0)
+    assert vn._search(fits, t, None, 0.5)[0] == pytest.approx((-102.0, -97.0))
+    just = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=16.0)
+    assert vn._search(just, t, None, 0.5)[0] == pytest.approx((-102.0, -102.0))
 
 
 def test_the_window_is_the_whole_cycles_after_the_first():
@@ -429,8 +551,8 @@ def test_a_reference_that_says_nothing_of_itself():
     bare = type("Bare", (), {"name": "bare", "evaluate": staticmethod(MOTION.evaluate)})()
     assert vn._frequencies(bare) == {}
     t = np.linspace(100.0, 120.0, 11)
-    assert vn._search(bare, t, None, 0.5) == pytest.approx((-110.0, -100.0 + 3600.0))
-    assert vn._search(bare, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
+    assert vn._search(bare, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 3600.0))
+    assert vn._search(bare, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
 
 
 def test_the_fundamentals_of_a_motion_that_repeats_only():

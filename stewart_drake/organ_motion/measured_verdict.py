@@ -26,6 +26,17 @@ measured axis k with the reference's motion r_k and the measured q_k, each less 
 - the latency beyond its bound;
 - and, when none of these, the motion's shape.
 
+A verdict names the measured samples it leaves uncompared, those the clock puts before the
+reference's start or after its end, on its line. With the clocks' relation not known, the clock
+is searched among the shifts that compare the whole recording, either end allowed
+:data:`MAX_UNCOMPARED_SHARE` of it outside the reference (a tracker started a little early): a
+search free to leave more out trades the recording's hard part for a better score (a robot that
+stopped, a platform that ran reversed for its first half) or cuts a right recording at a wrong
+repeat of its trace. A recording that no such shift fits (longer than its reference) is searched
+more widely, and a clock that then leaves more than :data:`MAX_UNCOMPARED_SHARE` uncompared
+makes the verdict CANNOT JUDGE, whether the rest would pass or fail. The clock given
+(``--clock-offset``) judges what the user said, and the verdict then says what it left out.
+
 A verdict that would PASS is CANNOT JUDGE instead when the phantom at rest would pass too: when
 on every measured axis the reference's own motion over the window (its RMS about its mean, the
 error of a platform resting at the reference's mean pose) is within the tolerance. Such a check
@@ -66,6 +77,10 @@ FOLLOWS_CORRELATION = 0.5
 PERIOD_SHARE = 0.05
 #: A latency found within this many seconds of the edge of the shifts searched is "at least".
 EDGE_S = 0.05
+
+#: The largest share of the measured samples a clock found (the clocks' relation not known) may
+#: leave uncompared, outside the reference, and the verdict still judge (CANNOT JUDGE beyond).
+MAX_UNCOMPARED_SHARE = 0.1
 
 #: The largest further shift searched with a turn of the measured axes, s (half a breath).
 TURN_SEARCH_S = 2.5
@@ -445,6 +460,8 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     latency_judged = ver.clock != "not known"
     latency_ok = not latency_judged or abs(ver.latency_s) <= ver.max_latency_s
     unseen = "" if not (ok and latency_ok) else motion_unseen(x_d[m], measured, tolerance)
+    left_out, too_much = uncompared_words(getattr(ver, "uncompared", {}))
+    unseen = "; ".join(w for w in (too_much, unseen) if w)
     passed = ok and latency_ok and not unseen
     moving = np.array([a in fid["moving"] for a in AXES])
     causes: list[str] = []
@@ -502,6 +519,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         f"{format_angle(tolerance[1])} over t = {format_window(w0, w1)} s (largest: "
         f"{', '.join(largest)}); {lat}"
         + (f"; cause: {'; '.join(causes)}" if causes else "")
+        + (f"; {left_out}" if left_out and not too_much else "")
         + (f"; {unseen}" if unseen else "")
     )
     return Judgement(
@@ -513,6 +531,40 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         latency_judged,
         sensitivity(t[m], x_d[m], measured, tolerance, ver.frame.removes_offsets),
         unseen,
+    )
+
+
+def uncompared_words(uncompared: dict) -> tuple[str, str]:
+    """(the words on the measured samples outside the reference, "" if none; why the verdict
+    cannot judge, "" unless a clock found among shifts that need not compare the whole recording
+    left more than :data:`MAX_UNCOMPARED_SHARE` of them). ``uncompared``: {"samples",
+    "before", "after", "before_s", "after_s", "whole"}, the recording's samples, those before
+    the reference's start and after its end, their spans, s, and whether the clock was known or
+    searched among the shifts that compare the whole recording
+    (:attr:`~.verification.Verification.uncompared`)."""
+    n = int(uncompared.get("samples", 0))
+    before, after = int(uncompared.get("before", 0)), int(uncompared.get("after", 0))
+    if not n or not before + after:
+        return "", ""
+    where = [
+        f"{which} {seconds(float(uncompared[f'{side}_s']))}, {what}"
+        for side, count, which, what in (
+            ("before", before, "its first", "before the reference's start"),
+            ("after", after, "its last", "after the reference's end"),
+        )
+        if count
+    ]
+    share = (before + after) / n
+    words = (
+        f"{before + after} of {n} measured samples not compared ({share:.0%}: {'; '.join(where)})"
+    )
+    if uncompared.get("whole", True) or share <= MAX_UNCOMPARED_SHARE:
+        return words, ""
+    return words, (
+        f"the clock found leaves {words[0].lower() + words[1:]}, over "
+        f"{MAX_UNCOMPARED_SHARE:.0%} of the recording: the search may have cut the recording where "
+        "it departs; give --clock-offset (the measured time + it = the reference's) to judge "
+        "it on a known clock, or cut the file to the reference's span"
     )
 
 
@@ -532,4 +584,6 @@ __all__ = [
     "compared_words",
     "judge",
     "seconds",
+    "uncompared_words",
+    "MAX_UNCOMPARED_SHARE",
 ]

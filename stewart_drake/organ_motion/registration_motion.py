@@ -173,7 +173,7 @@ def fit_registration(
     _check_registration_input(measured, name, max_gap_s)
     t, y = measured.t, measured.poses
     rot = measured.rotations_measured
-    search = _search(reference, t, clock_offset_s, max_latency_s)
+    search, _ = _search(reference, t, clock_offset_s, max_latency_s, whole=False)
     fit = _fit(reference, t, y, rot, search)
     sol, J, e, unpack, rms_m, rms_rad = fit.sol, fit.J, fit.e, fit.unpack, fit.rms_m, fit.rms_rad
     # The residual first: a marker that did not follow the motion leaves residuals so large

@@ -46,7 +46,7 @@ the reference's own clock. :func:`verify` then, with the clock and the frames of
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -66,7 +66,7 @@ from .alignment import (
 )
 from .fidelity import AXES, fidelity, format_window, startup_figures, time_lag
 from .measured_motion import MeasuredMotion
-from .measured_verdict import judge, seconds
+from .measured_verdict import MAX_UNCOMPARED_SHARE, judge, seconds, uncompared_words
 
 #: The largest latency that passes when the clocks' relation is known, s, unless given.
 MAX_LATENCY_S = 0.5
@@ -144,6 +144,10 @@ class Verification:
         removed: what was removed before the figures, in words (the clock, the frames, any
             resampling, what the recording holds outside the reference).
         searched_s: (lo, hi) the shifts searched, s. max_latency_s: the latency's bound, s.
+        uncompared: {"samples": the recording's, "before", "after": those the clock puts
+            before the reference's start and after its end, "before_s", "after_s": their
+            spans, s, "whole": whether the clock was known or searched among the shifts that
+            compare the whole recording}: what the verdict leaves out (its line says so).
         judgement: the verdict (:class:`~.measured_verdict.Judgement`), set by :func:`verify`.
     """
 
@@ -163,6 +167,7 @@ class Verification:
     removed: list
     searched_s: tuple = (0.0, 0.0)
     max_latency_s: float = MAX_LATENCY_S
+    uncompared: dict = field(default_factory=dict)
     judgement: Any = None
     learn_cycles: int = 0
     scale: float = 1.0
@@ -211,21 +216,33 @@ def _samples(t: np.ndarray, max_gap_s: float) -> str:
     )
 
 
-def _search(reference: Reference, t: np.ndarray, clock_offset_s, max_latency_s: float):
-    """(lo, hi) s: the shifts searched. Known clocks: the offset less the latencies up to
-    :data:`SEARCH_FACTOR` times ``max_latency_s`` either way (at most 0.45 of a periodic
-    reference's period); unknown: every shift that puts the recording's start from half its
-    length before the motion's start to the end of the reference (one period of a periodic one,
-    :data:`MAX_SEARCH_S` of one without an end)."""
+def _search(
+    reference: Reference, t: np.ndarray, clock_offset_s, max_latency_s: float, whole: bool = True
+):
+    """((lo, hi) s: the shifts searched, whether they compare the whole recording). Known
+    clocks: the offset less the latencies up to :data:`SEARCH_FACTOR` times ``max_latency_s``
+    either way (at most 0.45 of a periodic reference's period). Unknown: the shifts that compare
+    the whole recording, either end allowed :data:`~.measured_verdict.MAX_UNCOMPARED_SHARE` of
+    its length outside the reference (a tracker started a little before the motion), up to the
+    reference's end (one period of a periodic one, :data:`MAX_SEARCH_S` of one without an end);
+    a recording longer than the reference allows no such shift, and then its start may lie from
+    half its length before the motion's start (the verdict, which then leaves more than that
+    share uncompared, cannot judge). Not ``whole``: that wider range whatever the recording's
+    length (the best match of a part, :func:`_best_part`; the registration's fit)."""
     period = getattr(reference, "repeat_period_s", None)
     if clock_offset_s is not None:
         lat = SEARCH_FACTOR * max_latency_s
         lat = lat if not period else min(lat, 0.45 * period)
-        return clock_offset_s - lat, clock_offset_s + lat
+        return (clock_offset_s - lat, clock_offset_s + lat), True
     span = float(t[-1] - t[0])
     end = getattr(reference, "end_time", None)
-    top = float(end) - 0.5 * span if end is not None else float(period or MAX_SEARCH_S)
-    return -t[0] - 0.5 * span, -t[0] + max(top, 0.0)
+    slack = MAX_UNCOMPARED_SHARE * span
+    if end is None:
+        lo = -t[0] - (slack if whole else 0.5 * span)
+        return (lo, -t[0] + float(period or MAX_SEARCH_S)), whole
+    if whole and float(end) - span + slack >= -slack:  # the recording fits in the reference
+        return (-t[0] - slack, -t[0] + float(end) - span + slack), True
+    return (-t[0] - 0.5 * span, -t[0] + max(float(end) - 0.5 * span, 0.0)), False
 
 
 def _window(reference: Reference, a: float, b: float) -> tuple[tuple, np.ndarray, bool]:
@@ -307,6 +324,7 @@ def verify(
     max_latency_s: float = MAX_LATENCY_S,
     tolerance: tuple[float, float] = DEFAULT_TOLERANCE,
     max_gap_s: float = MAX_GAP_S,
+    _whole: bool = True,
 ) -> Verification:
     """Judge a measured motion against the reference it was asked to follow (module docstring).
 
@@ -348,6 +366,8 @@ def verify(
             f"counting seconds since 1970 is 1.7e9 s off), got {clock_offset_s}"
         )
     t, y = measured.t, np.array(measured.poses, dtype=float)
+    options = dict(frame=frame, registration=registration, max_latency_s=max_latency_s)
+    options.update(tolerance=tolerance, max_gap_s=max_gap_s)
     if clock_offset_s is not None:
         _check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
@@ -367,7 +387,7 @@ def verify(
     resampled = _samples(t, max_gap_s)
     _check_length(reference, t)
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
-    lo, hi = _search(reference, t, clock_offset_s, max_latency_s)
+    (lo, hi), whole = _search(reference, t, clock_offset_s, max_latency_s, _whole)
     weights = axis_weights(seen)
 
     def shown(times):
@@ -423,8 +443,39 @@ def verify(
         + _outside_words(t_rel + D, t_ref, (w0, w1), holds_start),
         searched_s=(lo, hi),
         max_latency_s=max_latency_s,
+        uncompared=_uncompared(t_rel + D, t_ref, whole),
     )
     ver.judgement = judge(ver, tolerance)
+    if _whole and clock == "not known" and ver.judgement.verdict == "FAIL":
+        return _best_part(ver, reference, measured, options)
+    return ver
+
+
+def _best_part(ver: Verification, reference: Reference, measured, options: dict):
+    """A FAIL of the whole recording, the clocks not known, against the best match that may
+    leave part of it out (:func:`_search` not ``whole``): a recording whose tracker started
+    well before the motion (a lead-in at rest) matches one cycle off when compared whole. That
+    match is the verdict when it leaves at most
+    :data:`~.measured_verdict.MAX_UNCOMPARED_SHARE` out (its line says what); else the FAIL
+    stands, and when the part would pass what it compares, it says so: a robot that stopped and
+    a recording that runs on past the motion's end look alike without the clock."""
+    try:
+        part = verify(reference, measured, _whole=False, **options)
+    except InvalidConfigError:
+        return ver
+    left, too_much = uncompared_words(part.uncompared)
+    if not too_much:
+        return part
+    if part.judgement.causes:
+        return ver
+    note = (
+        f"a part of it matches, leaving {left.replace(' not compared', '')} out: a robot that "
+        "stopped, or a recording that runs on past the motion? give --clock-offset (the "
+        "measured time + it = the reference's) to judge it on a known clock, or cut the file "
+        "to the motion's span"
+    )
+    ver.judgement.causes.append(note)
+    ver.judgement.line += f"; {note}"
     return ver
 
 
@@ -538,6 +589,21 @@ def _removed_words(d, offset, latency, clock, frames: Frames, removed, seen, res
     if resampled:
         lines.append(resampled)
     return lines
+
+
+def _uncompared(t_all, t_ref, whole: bool) -> dict:
+    """:attr:`Verification.uncompared` of the recording's times ``t_all`` on the reference's
+    clock, of which ``t_ref`` are compared; ``whole``: the clock known or searched among the
+    shifts that compare the whole recording (:func:`_search`)."""
+    before, after = t_all < t_ref[0], t_all > t_ref[-1]
+    return {
+        "whole": bool(whole),
+        "samples": int(t_all.size),
+        "before": int(before.sum()),
+        "after": int(after.sum()),
+        "before_s": float(t_ref[0] - t_all[0]),
+        "after_s": float(t_all[-1] - t_ref[-1]),
+    }
 
 
 def _outside_words(t_all, t_ref, window, holds_start: bool) -> list:
