@@ -47,6 +47,16 @@ def test_the_acceptance_set_loads_with_its_numbers():
             InvalidConfigError,
             r"resolution\.translation_m must be",
         ),
+        (
+            "accuracy: {translation_m: 5.0e-324}\n",
+            InvalidConfigError,
+            r"accuracy\.translation_m must be .*1e-07",
+        ),
+        (
+            "resolution: {rotation_rad: 9.9e-8}\n",
+            InvalidConfigError,
+            r"resolution\.rotation_rad must be .*1e-07",
+        ),
         ("payload_kg: [0.5\n", CorruptFileError, r"not YAML"),
         ("payload_kg: 0.5\npayload_kg: 0.6\n", InvalidConfigError, r"'payload_kg' appears twice"),
         (
@@ -85,3 +95,10 @@ def test_a_requirements_file_is_not_a_shipped_scenario():
     from stewart_drake.run.scenario_io import shipped_scenarios
 
     assert SHIPPED.exists() and "design_requirements" not in shipped_scenarios()
+
+
+def test_the_finest_requirements_are_taken():
+    from stewart_drake.design.requirements import Accuracy, Resolution
+
+    Accuracy(translation_m=1e-7, rotation_rad=1e-7).validate()
+    Resolution(translation_m=1e-7, rotation_rad=1e-7).validate()

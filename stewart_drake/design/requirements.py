@@ -28,6 +28,11 @@ from ..run.scenario_io import _in_file, _one_line, read_yaml_text
 
 #: Largest requirements file read, bytes (a few hundred bytes is typical).
 MAX_REQUIREMENTS_BYTES = 64 * 1024
+#: The finest resolution or accuracy a requirement may ask, m and rad: a tenth of a micrometre
+#: and of a microradian, finer than any encoder the catalogue holds (the DYNAMIXEL-P's 526,374
+#: counts a turn are 12 urad); a smaller number is a typo (5e-324 ended in a ZeroDivisionError).
+FINEST_TRANSLATION_M = 1e-7
+FINEST_ROTATION_RAD = 1e-7
 #: Largest side of the required box, m, and largest payload, kg: past a tabletop platform.
 MAX_BOX_SIDE_M, MAX_PAYLOAD_KG = 0.5, 20.0
 
@@ -94,9 +99,9 @@ class Resolution:
     than that (it dithers over a count or two), so this is the floor of its tracking error.
 
     Attributes:
-        translation_m: largest position error, m, in (0, 0.01].
+        translation_m: largest position error, m, in [:data:`FINEST_TRANSLATION_M`, 0.01].
         rotation_rad: largest orientation error (the roll-pitch-yaw error's norm), rad, in
-            (0, 0.1].
+            [:data:`FINEST_ROTATION_RAD`, 0.1].
     """
 
     translation_m: float = 5.0e-5
@@ -104,8 +109,8 @@ class Resolution:
 
     def validate(self) -> None:
         """Raises InvalidConfigError naming the field (``resolution.<name>``)."""
-        as_number("resolution.translation_m", self.translation_m, 0.0, 0.01, lo_open=True)
-        as_number("resolution.rotation_rad", self.rotation_rad, 0.0, 0.1, lo_open=True)
+        as_number("resolution.translation_m", self.translation_m, FINEST_TRANSLATION_M, 0.01)
+        as_number("resolution.rotation_rad", self.rotation_rad, FINEST_ROTATION_RAD, 0.1)
 
 
 @dataclass
@@ -119,8 +124,10 @@ class Accuracy:
     (friction, the period, the model).
 
     Attributes:
-        translation_m: RMS position error per axis, m, in (0, 0.01].
-        rotation_rad: RMS orientation error per axis, rad, in (0, 0.1].
+        translation_m: RMS position error per axis, m, in [:data:`FINEST_TRANSLATION_M`,
+            0.01].
+        rotation_rad: RMS orientation error per axis, rad, in [:data:`FINEST_ROTATION_RAD`,
+            0.1].
     """
 
     translation_m: float = 1.0e-4
@@ -128,8 +135,8 @@ class Accuracy:
 
     def validate(self) -> None:
         """Raises InvalidConfigError naming the field (``accuracy.<name>``)."""
-        as_number("accuracy.translation_m", self.translation_m, 0.0, 0.01, lo_open=True)
-        as_number("accuracy.rotation_rad", self.rotation_rad, 0.0, 0.1, lo_open=True)
+        as_number("accuracy.translation_m", self.translation_m, FINEST_TRANSLATION_M, 0.01)
+        as_number("accuracy.rotation_rad", self.rotation_rad, FINEST_ROTATION_RAD, 0.1)
 
 
 #: The share of the required accuracy the encoders' floor may take (:class:`Accuracy`).
