@@ -216,3 +216,20 @@ def test_the_rms_is_per_axis_over_the_rows():
     e[:, 4] = [1.0, 1.0, 1.0, 5.0]  # sqrt((3 + 25) / 4) = sqrt(7)
     np.testing.assert_allclose(axis_rms(e), [3.0, 0, 0, 0, np.sqrt(7.0), 0], rtol=1e-15, atol=0)
     assert np.isnan(axis_rms(np.empty((0, 6)))).all()
+
+
+def test_a_budget_longer_than_its_bound_is_refused_before_any_simulation(monkeypatch):
+    """A breath of an hour would simulate five hours, seven times: refused in one line with what
+    to change, before a simulation starts."""
+    from stewart_drake.analysis import error_budget as eb
+    from stewart_drake.run import simulate
+
+    def never(*args, **kw):
+        raise AssertionError("simulated")
+
+    monkeypatch.setattr(simulate, "run_experiment", never)
+    hour = Breathing(period_s=3600.0)
+    with pytest.raises(InvalidConfigError, match=r"would simulate 18000 s of the motion \(five"):
+        error_budget(load_scenario("paper_bus", []), hour)
+    with pytest.raises(InvalidConfigError, match="--param period="):
+        error_budget(load_scenario("paper_bus", []), "breathing", duration_s=eb.MAX_SPAN_S + 1)

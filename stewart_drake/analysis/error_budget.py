@@ -148,6 +148,11 @@ class ErrorBudget:
         }
 
 
+#: The longest span one of the budget's simulations may take, s (each runs about as long on a
+#: quiet machine; the budget runs one with every source and one without each).
+MAX_SPAN_S = 300.0
+
+
 def error_budget(
     scenario,
     reference,
@@ -166,7 +171,8 @@ def error_budget(
         skip_s: the start not measured, s (default the first period, or 4 s).
         say: called with a line before each simulation (progress), or None.
     Raises:
-        InvalidConfigError: the ideal robot (no encoders to budget), a window outside the span.
+        InvalidConfigError: the ideal robot (no encoders to budget), a window outside the span,
+            a span over :data:`MAX_SPAN_S` (before any simulation).
         UnreachablePoseError, MotorLimitError, ...: the reference's check refused the motion.
         SimulationDivergedError: a simulation diverged.
     """
@@ -192,6 +198,12 @@ def error_budget(
     skip = skip_s if skip_s is not None else (period if period > 0 else 4.0)
     if not 0 <= skip < span:
         raise InvalidConfigError(f"skip_s ({skip:g} s) must lie within the span ({span:g} s)")
+    if span > MAX_SPAN_S:
+        what = f"{span:g} s of the motion" + ("" if duration_s else " (five of its periods)")
+        raise InvalidConfigError(
+            f"the budget would simulate {what} up to {1 + len(SOURCES)} times, beyond "
+            f"{MAX_SPAN_S:g} s a run: give a motion of a shorter period (--param period=...)"
+        )
     base = dataclasses.replace(base, bus=None, duration_s=span, learning=None)
     motors = hw.motors
 
