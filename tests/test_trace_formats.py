@@ -191,3 +191,18 @@ def test_a_slow_trace_at_the_step_bound_still_reads_and_one_beyond_it_does_not(t
         else:
             with pytest.raises(InvalidConfigError, match="too slow to sample a breath"):
                 load_trace(path)
+
+
+@pytest.mark.parametrize("last_s, dropped", [(-40.0, True), (-0.1, False), (5.0, True)])
+def test_a_closing_line_of_zeros_on_a_clock_below_zero(tmp_path, last_s, dropped):
+    """A tracker's export on a clock that runs below zero (times -60 to -40 s) ends with its
+    line of zeros: not a sample at t = 0 (40 s after the last; was read as one, and the right
+    export refused); one a step after the last (t = -0.1, then 0) is a sample; after a later
+    time (5 s) it never is."""
+    t = np.arange(201) * 0.1 + (last_s - 20.0)
+    rows = ["t [s],X [mm]"] + [f"{v:.3f},{1.0 + np.sin(v):.4f}" for v in t] + ["0,0"]
+    path = tmp_path / "export.csv"
+    path.write_text("\n".join(rows) + "\n")
+    ref = load_trace(path)
+    assert ref.info.samples == (201 if dropped else 202)
+    assert (ref.info.dropped == f"line {len(rows)} (all zeros after the last sample)") == dropped

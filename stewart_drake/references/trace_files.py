@@ -294,10 +294,15 @@ def _trace_values(path: Path, rows: list, width: int, keep: list) -> tuple:
 
 
 def _without_end_marker(path: Path, data: np.ndarray, lines: np.ndarray) -> tuple:
-    """(data, lines, what was left out in words or "") of a trace's rows: a last row of zeros
-    after a later time (a tracker's export ends so) is not a sample, and is left out."""
-    if len(data) > 2 and data[-2, 0] > 0 and not np.any(data[-1]):
-        return data[:-1], lines[:-1], f"line {lines[-1]} (all zeros after the last sample)"
+    """(data, lines, what was left out in words or "") of a trace's rows: a last row of zeros (a
+    tracker's export ends so) is not a sample, and is left out, when it comes after a later time
+    or, on a clock that runs below zero, at a step other than the file's (more than half the
+    median step off it): time 0 then is no sample's."""
+    if len(data) > 3 and not np.any(data[-1]):
+        last = float(data[-2, 0])
+        step = float(np.median(np.diff(data[:-1, 0])))
+        if last > 0 or (step > 0 and abs(-last - step) > 0.5 * step):
+            return data[:-1], lines[:-1], f"line {lines[-1]} (all zeros after the last sample)"
     return data, lines, ""
 
 
