@@ -405,3 +405,20 @@ def test_a_surrogate_file_that_starts_later_is_taken_on_its_clock(tmp_path, as_w
     else:
         assert code == 2
         assert abs(figures["relative_latency_s"]) == pytest.approx(0.4, abs=0.01)
+
+
+def test_a_surrogate_file_of_another_session_is_refused_as_not_overlapping(tmp_path, capsys):
+    """The surrogate's samples written 1000 s later than the motion's file: they do not
+    overlap, which is said in one line before any work (was: NaN and a made-up lead)."""
+    rows = [line.split() for line in SURROGATE.read_text().splitlines() if line.strip()]
+    later = tmp_path / "surrogate_later.txt"
+    later.write_text("\n".join(f"{float(a) + 1000.0:.1f} {b}" for a, b in rows) + "\n")
+    internal, surrogate = pair_files(tmp_path)
+    out = tmp_path / "out"
+    argv = ["verify", str(TRACE), "--surrogate", str(later), "--measured", str(internal)]
+    argv += ["--measured-map", "depth=AP", "--measured-surrogate", str(surrogate)]
+    argv += ["--measured-surrogate-map", "depth=SI", "--tolerance", "1mm,1deg"]
+    code = main(argv + ["--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2 and "do not overlap: they were not recorded together" in err, err
+    assert "t = 1000-" in err and not list(out.glob("verify_*_pair.json"))

@@ -54,11 +54,29 @@ def on_clock_of(reference, internal):
     recorded with): the two files' times as written relate them (:func:`clock_start_s`); a file
     that starts later than the other is played later by as much, never re-zeroed onto it.
     Returns ``reference`` itself when both start together, or when either has no file's clock
-    (a motion of the library: each then starts at 0)."""
+    (a motion of the library: each then starts at 0).
+
+    Raises:
+        InvalidConfigError: two files whose times as written do not overlap (not recorded
+            together: the one would play the other's first or last pose throughout).
+    """
     mine, theirs = clock_start_s(reference), clock_start_s(internal)
     if mine is None or theirs is None or mine == theirs:
         return reference
-    return OnClockOf(reference, mine - theirs)
+    lag = mine - theirs
+    spans = [getattr(r, "end_time", None) for r in (reference, internal)]
+    if None not in spans and (lag >= spans[1] or lag + spans[0] <= 0.0):
+        from ..base.errors import InvalidConfigError
+
+        def written(start, span):
+            return f"t = {start:.6g}-{start + span:.6g} s as written"
+
+        raise InvalidConfigError(
+            f"{getattr(reference, 'name', 'the surrogate')} ({written(mine, spans[0])}) and "
+            f"{getattr(internal, 'name', 'the motion')} ({written(theirs, spans[1])}) do not "
+            "overlap: they were not recorded together; give the two files of one session"
+        )
+    return OnClockOf(reference, lag)
 
 
 __all__ = ["clock_start_s", "OnClockOf", "on_clock_of"]
