@@ -23,10 +23,17 @@ MODULES = (
 
 @pytest.mark.system
 def test_the_interpreted_kernels_are_the_same_functions_with_the_jit_off():
+    """Every kernel the JIT on compiles is there with it off; the only others are its aliases
+    (``ik_compiled = _njit(ik_scalar)`` leaves ``ik_scalar`` the same function then)."""
     script = (
         "import importlib, json, sys\n"
-        "names = {m: sorted(vars(importlib.import_module(m).reference)) for m in sys.argv[1:]}\n"
-        "print(json.dumps(names))\n"
+        "out = {}\n"
+        "for m in sys.argv[1:]:\n"
+        "    mod = importlib.import_module(m)\n"
+        "    names = sorted(vars(mod.reference))\n"
+        "    g = vars(mod)\n"
+        "    out[m] = {n: [k for k in names if k != n and g[k] is g[n]] for n in names}\n"
+        "print(json.dumps(out))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", script, *MODULES],
@@ -38,6 +45,8 @@ def test_the_interpreted_kernels_are_the_same_functions_with_the_jit_off():
     assert done.returncode == 0, done.stderr[-2000:]
     off = json.loads(done.stdout.strip().splitlines()[-1])
     for name in MODULES:
-        on = sorted(vars(importlib.import_module(name).reference))
+        on = set(vars(importlib.import_module(name).reference))
         assert on, name  # the JIT on finds the compiled functions
-        assert off[name] == on, name
+        assert on <= set(off[name]), (name, on - set(off[name]))
+        for extra in set(off[name]) - on:
+            assert set(off[name][extra]) & on, (name, extra)  # an alias of a kernel

@@ -462,11 +462,17 @@ def _recovering(base: type) -> type:
 
 def _python_of(value):
     """The Python a kernel was compiled from (numba's ``py_func``); with ``NUMBA_DISABLE_JIT``
-    the marked function itself; None for anything else."""
+    the marked function itself (with the JIT on, a marked plain function is one compiled under
+    another name, ``ik_compiled = _njit(ik_scalar)``, and not a kernel of its own); None for
+    anything else."""
     f = getattr(value, "py_func", None)
     if callable(f):
         return f
-    return value if callable(value) and getattr(value, KERNEL_MARK, False) else None
+    if not (callable(value) and getattr(value, KERNEL_MARK, False)):
+        return None
+    import numba
+
+    return value if numba.config.DISABLE_JIT else None
 
 
 def interpreted(namespace: dict) -> types.SimpleNamespace:
