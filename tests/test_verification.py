@@ -14,6 +14,7 @@ from harmonic_motion import Harmonics, along
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration.tracker import emulated_setup
+from stewart_drake.organ_motion import measured_span as span
 from stewart_drake.organ_motion import verification as vn
 from stewart_drake.organ_motion.alignment import Frames
 from stewart_drake.organ_motion.fidelity import AXES, time_lag
@@ -454,57 +455,61 @@ def test_the_shifts_searched():
     ended = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=60.0)
     endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False)
     # Known clocks: the latencies up to 3 times the bound, at most 0.45 of a period.
-    assert vn._search(ended, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
-    assert vn._search(periodic, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
-    assert vn._search(periodic, t, -98.0, 1.0)[0] == pytest.approx((-99.8, -96.2))
+    assert span.search_range(ended, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
+    assert span.search_range(periodic, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
+    assert span.search_range(periodic, t, -98.0, 1.0)[0] == pytest.approx((-99.8, -96.2))
     # Unknown: the shifts that compare the whole 20 s recording, either end up to a tenth of it
     # (2 s) outside the reference: its start from 2 s before the motion's to its end 2 s past
     # the reference's (60 s), or a period on (4 s), or MAX_SEARCH_S without an end.
-    assert vn._search(ended, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 60.0 - 20.0 + 2.0))
-    assert vn._search(periodic, t, None, 0.5)[0] == pytest.approx((-102.0, -96.0))
-    assert vn._search(endless, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 3600.0))
+    assert span.search_range(ended, t, None, 0.5)[0] == pytest.approx(
+        (-102.0, -100.0 + 60.0 - 20.0 + 2.0)
+    )
+    assert span.search_range(periodic, t, None, 0.5)[0] == pytest.approx((-102.0, -96.0))
+    assert span.search_range(endless, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 3600.0))
     # A recording longer than the reference (20 s against 5 s) fits no such shift: its start
     # from half its length before the motion's to the end less half of it (none: 0).
     short = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=5.0)
-    assert vn._search(short, t, None, 0.5) == (pytest.approx((-110.0, -100.0)), False)
-    assert vn._search(ended, t, None, 0.5)[1] and vn._search(periodic, t, -98.0, 0.5)[1]
+    assert span.search_range(short, t, None, 0.5) == (pytest.approx((-110.0, -100.0)), False)
+    assert (
+        span.search_range(ended, t, None, 0.5)[1] and span.search_range(periodic, t, -98.0, 0.5)[1]
+    )
     # One that fits, 21 s: its start from 2 s before the motion's to 3 s after (its end 2 s
     # past the reference's); one of 16 s, 4 s shorter than the recording, just fits.
     fits = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=21.0)
-    assert vn._search(fits, t, None, 0.5)[0] == pytest.approx((-102.0, -97.0))
+    assert span.search_range(fits, t, None, 0.5)[0] == pytest.approx((-102.0, -97.0))
     just = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=16.0)
-    assert vn._search(just, t, None, 0.5)[0] == pytest.approx((-102.0, -102.0))
+    assert span.search_range(just, t, None, 0.5)[0] == pytest.approx((-102.0, -102.0))
 
 
 def test_the_window_is_the_whole_cycles_after_the_first():
-    window, starts, holds = vn._window(MOTION, 1.0, 30.0)
+    window, starts, holds = span.cycle_window(MOTION, 1.0, 30.0)
     assert window == (4.0, 28.0) and holds
     np.testing.assert_array_equal(starts, [4, 8, 12, 16, 20, 24, 28])
-    window, starts, holds = vn._window(MOTION, 8.0, 16.0)  # the edges are in
+    window, starts, holds = span.cycle_window(MOTION, 8.0, 16.0)  # the edges are in
     assert window == (8.0, 16.0) and not holds and list(starts) == [8, 12, 16]
-    window, starts, holds = vn._window(MOTION, 4.0, 12.0)  # from the first cycle's end
+    window, starts, holds = span.cycle_window(MOTION, 4.0, 12.0)  # from the first cycle's end
     assert window == (4.0, 12.0) and not holds
     with pytest.raises(InvalidConfigError, match="not one whole cycle"):
-        vn._window(MOTION, 0.5, 4.0)  # the first cycle alone
-    window, starts, holds = vn._window(MOTION, 5.0, 15.9)
+        span.cycle_window(MOTION, 0.5, 4.0)  # the first cycle alone
+    window, starts, holds = span.cycle_window(MOTION, 5.0, 15.9)
     assert window == (8.0, 12.0) and not holds
     with pytest.raises(InvalidConfigError) as err:
-        vn._window(MOTION, 5.0, 11.0)
+        span.cycle_window(MOTION, 5.0, 11.0)
     assert str(err.value) == (
         "the measured motion covers t = 5-11 s of harmonics once aligned: not one whole cycle "
         "(4 s) after the motion's first; record at least two cycles"
     )
     endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, name="trace")
-    window, starts, holds = vn._window(endless, 1.5, 5.5)
+    window, starts, holds = span.cycle_window(endless, 1.5, 5.5)
     assert window == (1.5, 5.5) and starts.size == 0 and not holds
     with pytest.raises(InvalidConfigError, match="covers 3.99 s of trace once aligned, shorter"):
-        vn._window(endless, 1.5, 5.49)
+        span.cycle_window(endless, 1.5, 5.49)
 
 
 def test_the_length_of_a_recording_is_one_cycle_at_least():
-    vn._check_length(MOTION, np.array([0.0, 4.0]))
+    span.check_length(MOTION, np.array([0.0, 4.0]))
     with pytest.raises(InvalidConfigError) as err:
-        vn._check_length(MOTION, np.array([0.0, 3.99]))
+        span.check_length(MOTION, np.array([0.0, 3.99]))
     assert str(err.value) == (
         "the measured motion lasts 3.99 s, shorter than one cycle of harmonics (4 s): record at "
         "least two cycles"
@@ -515,13 +520,13 @@ def test_the_length_of_a_recording_is_one_cycle_at_least():
     unsaid = type(
         "Unsaid", (), {"name": "u", "evaluate": cycling.evaluate, "cycles": cycling.cycles}
     )()
-    vn._check_length(unsaid, np.array([0.0, 5.0]))
+    span.check_length(unsaid, np.array([0.0, 5.0]))
     with pytest.raises(InvalidConfigError, match="shorter than one cycle of u \\(5 s\\)"):
-        vn._check_length(unsaid, np.array([0.0, 4.9]))
+        span.check_length(unsaid, np.array([0.0, 4.9]))
     endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, name="e")
-    vn._check_length(endless, np.array([0.0, 4.0]))
+    span.check_length(endless, np.array([0.0, 4.0]))
     with pytest.raises(InvalidConfigError, match="shorter than one cycle of e \\(4 s\\)"):
-        vn._check_length(endless, np.array([0.0, 3.9]))
+        span.check_length(endless, np.array([0.0, 3.9]))
 
 
 class Lengthening:
@@ -541,9 +546,9 @@ class Lengthening:
 
 def test_a_trace_with_an_end_is_cut_into_its_own_cycles():
     # Its cycles up to its end (3 to 4 s, median 3.5 s), not those past it.
-    vn._check_length(Lengthening(), np.array([0.0, 3.5]))
+    span.check_length(Lengthening(), np.array([0.0, 3.5]))
     with pytest.raises(InvalidConfigError, match="shorter than one cycle of slowing \\(3.5 s\\)"):
-        vn._check_length(Lengthening(), np.array([0.0, 3.45]))
+        span.check_length(Lengthening(), np.array([0.0, 3.45]))
 
 
 def test_a_reference_that_says_nothing_of_itself():
@@ -551,8 +556,8 @@ def test_a_reference_that_says_nothing_of_itself():
     bare = type("Bare", (), {"name": "bare", "evaluate": staticmethod(MOTION.evaluate)})()
     assert vn._frequencies(bare) == {}
     t = np.linspace(100.0, 120.0, 11)
-    assert vn._search(bare, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 3600.0))
-    assert vn._search(bare, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
+    assert span.search_range(bare, t, None, 0.5)[0] == pytest.approx((-102.0, -100.0 + 3600.0))
+    assert span.search_range(bare, t, -98.0, 0.5)[0] == pytest.approx((-99.5, -96.5))
 
 
 def test_the_fundamentals_of_a_motion_that_repeats_only():
@@ -711,30 +716,30 @@ def test_the_words_on_the_clock_and_the_frames():
 def test_the_words_on_what_the_figures_leave_out():
     t_all = np.arange(-1.0, 25.0, 0.5)
     t_ref = t_all[(t_all >= 0.0) & (t_all <= 22.0)]
-    assert vn._outside_words(t_all, t_ref, (4.0, 20.0), True) == [
+    assert span.outside_words(t_all, t_ref, (4.0, 20.0), True) == [
         "what the figures leave out: 1 s of the recording before the reference's start and 2.5 s "
         "after its end are not compared; the figures are over whole cycles, t = 4-20 s: 4 s "
         "before (the motion's first cycle, the start-up) and 2 s after are outside them"
     ]
-    assert vn._outside_words(t_ref, t_ref, (4.0, 20.0), False) == [
+    assert span.outside_words(t_ref, t_ref, (4.0, 20.0), False) == [
         "what the figures leave out: the figures are over whole cycles, t = 4-20 s: 4 s before "
         "(part of a cycle) and 2 s after are outside them"
     ]
-    assert vn._outside_words(t_all, t_ref, (0.0, 22.0), False) == [
+    assert span.outside_words(t_all, t_ref, (0.0, 22.0), False) == [
         "what the figures leave out: 1 s of the recording before the reference's start and 2.5 s "
         "after its end are not compared"
     ]
-    assert vn._outside_words(t_ref, t_ref, (0.0, 22.0), False) == []
-    assert vn._outside_words(t_ref, t_ref, (0.5, 22.0), False) == [
+    assert span.outside_words(t_ref, t_ref, (0.0, 22.0), False) == []
+    assert span.outside_words(t_ref, t_ref, (0.5, 22.0), False) == [
         "what the figures leave out: the figures are over whole cycles, t = 0.5-22 s: 0.5 s "
         "before (part of a cycle) and 0 s after are outside them"
     ]
-    assert vn._outside_words(t_ref, t_ref, (0.0, 21.5), False)[0].endswith(
+    assert span.outside_words(t_ref, t_ref, (0.0, 21.5), False)[0].endswith(
         "0 s before (part of a cycle) and 0.5 s after are outside them"
     )
     # Only after, or only before.
-    assert "0 s of the recording before" in vn._outside_words(t_ref, t_ref[:-1], (0, 21.5), 0)[0]
+    assert "0 s of the recording before" in span.outside_words(t_ref, t_ref[:-1], (0, 21.5), 0)[0]
     assert (
         "1 s of the recording before the reference's start and 0 s after its end"
-        in (vn._outside_words(t_all[:-5], t_ref, (0, 22.0), 0)[0])
+        in (span.outside_words(t_all[:-5], t_ref, (0, 22.0), 0)[0])
     )

@@ -101,6 +101,7 @@ MODULES = {
         "tests/test_verify_discrimination.py",
     ),
     "stewart_drake/organ_motion/verification.py": ("tests/test_verification.py",),
+    "stewart_drake/organ_motion/measured_span.py": ("tests/test_verification.py",),
     "stewart_drake/organ_motion/registration_motion.py": ("tests/test_registration_motion.py",),
     "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),
     # test_predictors.py too: the settings' refusals, the bound, the envelope and the shrinkage's

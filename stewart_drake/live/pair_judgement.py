@@ -25,7 +25,7 @@ measured motion behind its command).
 **How it is found** (:func:`verify_pair`): the internal motion by
 :func:`~stewart_drake.organ_motion.verification.verify`, as ``verify`` alone judges it (its
 frames, its clock); the surrogate's shift then searched on the internal's clock, within
-:data:`RELATIVE_SEARCH_S` (or :data:`~stewart_drake.organ_motion.verification.SEARCH_FACTOR`
+:data:`RELATIVE_SEARCH_S` (or :data:`~stewart_drake.organ_motion.measured_span.SEARCH_FACTOR`
 times the bound, if wider; at most 0.45 of a periodic surrogate's period, so a breath earlier or
 later is never taken) of d_internal, by the same search (FFT over every shift on a grid, then to a
 fraction of a sample: :func:`relative_shift`). The surrogate's own fidelity is verify's on its
@@ -71,7 +71,7 @@ from .pair_causes import swapped_words, why_not_following
 #: of a 10 mm, 4 s breath.
 MAX_RELATIVE_LATENCY_S = 0.1
 #: Relative latencies up to this, s, are searched either way (or
-#: :data:`~stewart_drake.organ_motion.verification.SEARCH_FACTOR` times the bound, if wider): a
+#: :data:`~stewart_drake.organ_motion.measured_span.SEARCH_FACTOR` times the bound, if wider): a
 #: relative latency beyond the bound is found and fails rather than hidden at the edge; below half
 #: a breath (about 4 s), so that a breath earlier or later is not matched.
 RELATIVE_SEARCH_S = 1.5
@@ -209,9 +209,9 @@ DEFINITION = (
 
 def search_half_width(reference, max_relative_latency_s: float) -> float:
     """The relative latencies searched either way, s: :data:`RELATIVE_SEARCH_S`, or
-    :data:`~stewart_drake.organ_motion.verification.SEARCH_FACTOR` times the bound if wider; at
+    :data:`~stewart_drake.organ_motion.measured_span.SEARCH_FACTOR` times the bound if wider; at
     most 0.45 of the surrogate reference's period when it repeats."""
-    from ..organ_motion.verification import SEARCH_FACTOR
+    from ..organ_motion.measured_span import SEARCH_FACTOR
 
     width = max(RELATIVE_SEARCH_S, SEARCH_FACTOR * max_relative_latency_s)
     period = getattr(reference, "repeat_period_s", None)

@@ -167,13 +167,13 @@ def fit_registration(
             reversed, fitting clearly better (:data:`BETTER_SHARE`): a frame fitted to it as
             written would be wrong; a step between samples longer than ``max_gap_s``.
     """
-    from .verification import _search
+    from .measured_span import search_range
 
     name = getattr(reference, "name", "the reference")
     _check_registration_input(measured, name, max_gap_s)
     t, y = measured.t, measured.poses
     rot = measured.rotations_measured
-    search, _ = _search(reference, t, clock_offset_s, max_latency_s, whole=False)
+    search, _ = search_range(reference, t, clock_offset_s, max_latency_s, whole=False)
     fit = _fit(reference, t, y, rot, search)
     sol, J, e, unpack, rms_m, rms_rad = fit.sol, fit.J, fit.e, fit.unpack, fit.rms_m, fit.rms_rad
     # The residual first: a marker that did not follow the motion leaves residuals so large

@@ -64,31 +64,28 @@ from .alignment import (
     reference_seen,
     registered_frames,
 )
-from .fidelity import AXES, fidelity, format_window, startup_figures, time_lag
+from .fidelity import AXES, fidelity, startup_figures, time_lag
 from .measured_motion import MeasuredMotion
-from .measured_verdict import MAX_UNCOMPARED_SHARE, judge, seconds, uncompared_words
+from .measured_span import (
+    CYCLE_SLACK,
+    MAX_REFERENCE_TIME_S,
+    MAX_SEARCH_S,
+    MIN_SPAN_S,
+    SEARCH_FACTOR,
+    check_length,
+    check_reference_time,
+    cycle_window,
+    outside_words,
+    search_range,
+    uncompared,
+)
+from .measured_verdict import judge, seconds, uncompared_words
 
 #: The largest latency that passes when the clocks' relation is known, s, unless given.
 MAX_LATENCY_S = 0.5
-#: With the clocks' relation known, latencies up to this many times the largest that passes
-#: are searched (at most 0.45 of a periodic reference's period, so that a cycle earlier or
-#: later is never taken): a latency beyond the bound is found, and fails, rather than hidden at
-#: the edge of the search.
-SEARCH_FACTOR = 3.0
 #: The largest clock offset taken, s (about 317 years: a clock counting from 1970 fits, with
 #: float64's steps there under a microsecond).
 MAX_CLOCK_OFFSET_S = 1e10
-#: Longest stretch of a reference without cycles the shift is searched over when the clocks'
-#: relation is not known, s (an hour: the longest run reproduce makes).
-MAX_SEARCH_S = 3600.0
-#: The share of a cycle a recording may miss at either end of the window and the cycle still
-#: count as whole (cut to the recording).
-CYCLE_SLACK = 0.02
-#: The latest time of the reference's clock a measured motion may lie at, s (11.6 days: a
-#: tracker's clock since it booted): a motion's cycles up to there are held in memory.
-MAX_REFERENCE_TIME_S = 1e6
-#: Shortest measured motion without cycles that is judged, s (a breath).
-MIN_SPAN_S = 4.0
 #: Step of the coarse clock search, s (finer when the measured samples are).
 COARSE_STEP_S = 0.02
 #: Jitter of a file's time steps beyond which the report says how uneven they are (as a share
@@ -216,73 +213,6 @@ def _samples(t: np.ndarray, max_gap_s: float) -> str:
     )
 
 
-def _search(
-    reference: Reference, t: np.ndarray, clock_offset_s, max_latency_s: float, whole: bool = True
-):
-    """((lo, hi) s: the shifts searched, whether they compare the whole recording). Known
-    clocks: the offset less the latencies up to :data:`SEARCH_FACTOR` times ``max_latency_s``
-    either way (at most 0.45 of a periodic reference's period). Unknown: the shifts that compare
-    the whole recording, either end allowed :data:`~.measured_verdict.MAX_UNCOMPARED_SHARE` of
-    its length outside the reference (a tracker started a little before the motion), up to the
-    reference's end (one period of a periodic one, :data:`MAX_SEARCH_S` of one without an end);
-    a recording longer than the reference allows no such shift, and then its start may lie from
-    half its length before the motion's start (the verdict, which then leaves more than that
-    share uncompared, cannot judge). Not ``whole``: that wider range whatever the recording's
-    length (the best match of a part, :func:`_best_part`; the registration's fit)."""
-    period = getattr(reference, "repeat_period_s", None)
-    if clock_offset_s is not None:
-        lat = SEARCH_FACTOR * max_latency_s
-        lat = lat if not period else min(lat, 0.45 * period)
-        return (clock_offset_s - lat, clock_offset_s + lat), True
-    span = float(t[-1] - t[0])
-    end = getattr(reference, "end_time", None)
-    slack = MAX_UNCOMPARED_SHARE * span
-    if end is None:
-        lo = -t[0] - (slack if whole else 0.5 * span)
-        return (lo, -t[0] + float(period or MAX_SEARCH_S)), whole
-    if whole and float(end) - span + slack >= -slack:  # the recording fits in the reference
-        return (-t[0] - slack, -t[0] + float(end) - span + slack), True
-    return (-t[0] - 0.5 * span, -t[0] + max(float(end) - 0.5 * span, 0.0)), False
-
-
-def _window(reference: Reference, a: float, b: float) -> tuple[tuple, np.ndarray, bool]:
-    """((w0, w1) the window measured, (K + 1,) the cycle starts in [a, b], whether the recording
-    [a, b] (reference time, s) holds the motion's first cycle): the whole cycles after the first
-    one of the motion (a cycle that the recording misses by at most :data:`CYCLE_SLACK` of a
-    cycle at either end counts, cut to the recording: a run logged until its end stops a
-    period or two short of it); all of [a, b] for a reference without cycles.
-
-    Raises:
-        InvalidConfigError: not one whole cycle (or :data:`MIN_SPAN_S` without cycles).
-    """
-    from ..references.motion import reference_cycles
-
-    name = getattr(reference, "name", "the reference")
-    try:
-        starts, _ = reference_cycles(reference, b)
-    except InvalidConfigError:
-        starts = np.zeros(0)
-    if starts.size < 2:
-        if b - a < MIN_SPAN_S:
-            raise InvalidConfigError(
-                f"the measured motion covers {b - a:.3g} s of {name} once aligned, shorter than "
-                f"a breath ({MIN_SPAN_S:g} s): record a longer stretch"
-            )
-        return (a, b), np.zeros(0), False
-    holds_start = a < starts[1]
-    slack = CYCLE_SLACK * float(np.median(np.diff(starts)))
-    inside = starts[(starts >= max(a, starts[1]) - slack) & (starts <= b + slack)]
-    inside = np.clip(inside, max(a, starts[1]), b)  # a recording a few samples short of a cycle
-    if inside.size < 2:
-        cycle = float(np.median(np.diff(starts)))
-        raise InvalidConfigError(
-            f"the measured motion covers t = {format_window(a, b)} s of {name} once aligned: "
-            f"not one whole cycle ({cycle:.3g} s) after the motion's first; record at least two "
-            "cycles"
-        )
-    return (float(inside[0]), float(inside[-1])), inside, holds_start
-
-
 def _not_measured(fid: dict, measured: np.ndarray, t, x, x_d) -> dict:
     """``fid`` with the figures of the axes not measured NaN (their harmonics and lags left out;
     the lag of the whole motion from the measured axes; the 3-D figures of rotation or
@@ -369,7 +299,7 @@ def verify(
     options = dict(frame=frame, registration=registration, max_latency_s=max_latency_s)
     options.update(tolerance=tolerance, max_gap_s=max_gap_s)
     if clock_offset_s is not None:
-        _check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
+        check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
     if measured.kind in ("encoders", "carriage"):
         clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
@@ -385,9 +315,9 @@ def verify(
         else:
             y[:, 3:] = y[:, 3:] @ frames.R_BT.T + frames.p_BT
     resampled = _samples(t, max_gap_s)
-    _check_length(reference, t)
+    check_length(reference, t)
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
-    (lo, hi), whole = _search(reference, t, clock_offset_s, max_latency_s, _whole)
+    (lo, hi), whole = search_range(reference, t, clock_offset_s, max_latency_s, _whole)
     weights = axis_weights(seen)
 
     def shown(times):
@@ -408,10 +338,10 @@ def verify(
     d = D - t_first
     keep = overlap(reference, t_rel + D, 0.0)
     t_ref = t_rel[keep] + D
-    _check_reference_time(float(t_ref[0]), float(t_ref[-1]))
+    check_reference_time(float(t_ref[0]), float(t_ref[-1]))
     x_d = reference_poses(reference, t_ref)
     x = platform_poses(frames, y[keep], x_d)
-    (w0, w1), starts, holds_start = _window(reference, float(t_ref[0]), float(t_ref[-1]))
+    (w0, w1), starts, holds_start = cycle_window(reference, float(t_ref[0]), float(t_ref[-1]))
     removed = np.zeros(6)
     if offsets:
         inside = (t_ref >= w0 - 1e-9) & (t_ref <= w1 + 1e-9)
@@ -440,10 +370,10 @@ def verify(
         frame=frames,
         offsets=removed,
         removed=_removed_words(d, offset, latency, clock, frames, removed, seen, resampled)
-        + _outside_words(t_rel + D, t_ref, (w0, w1), holds_start),
+        + outside_words(t_rel + D, t_ref, (w0, w1), holds_start),
         searched_s=(lo, hi),
         max_latency_s=max_latency_s,
-        uncompared=_uncompared(t_rel + D, t_ref, whole),
+        uncompared=uncompared(t_rel + D, t_ref, whole),
     )
     ver.judgement = judge(ver, tolerance)
     if _whole and clock == "not known" and ver.judgement.verdict == "FAIL":
@@ -453,7 +383,7 @@ def verify(
 
 def _best_part(ver: Verification, reference: Reference, measured, options: dict):
     """A FAIL of the whole recording, the clocks not known, against the best match that may
-    leave part of it out (:func:`_search` not ``whole``): a recording whose tracker started
+    leave part of it out (:func:`search_range` not ``whole``): a recording whose tracker started
     well before the motion (a lead-in at rest) matches one cycle off when compared whole. That
     match is the verdict when it leaves at most
     :data:`~.measured_verdict.MAX_UNCOMPARED_SHARE` out (its line says what); else the FAIL
@@ -477,23 +407,6 @@ def _best_part(ver: Verification, reference: Reference, measured, options: dict)
     ver.judgement.causes.append(note)
     ver.judgement.line += f"; {note}"
     return ver
-
-
-def _check_reference_time(a: float, b: float) -> None:
-    """Refuse a measured motion that, on the reference's clock, lies in [a, b] s beyond
-    :data:`MAX_REFERENCE_TIME_S` either way: no run of a phantom is that long, and the cycles
-    of a motion up to there would take memory in proportion (a clock offset of 1e10 s, or one
-    of the wrong sign or unit).
-
-    Raises:
-        InvalidConfigError: naming the times and what to check.
-    """
-    if max(abs(a), abs(b)) > MAX_REFERENCE_TIME_S:
-        raise InvalidConfigError(
-            f"the measured motion lies at t = {a:.6g} to {b:.6g} s of the reference's clock, "
-            f"beyond the {MAX_REFERENCE_TIME_S:g} s a phantom's run can last: measured time + "
-            "--clock-offset = the reference's time; check the offset's sign and unit"
-        )
 
 
 def _check_judgeable(reference: Reference, fid: dict, seen, measured: MeasuredMotion) -> None:
@@ -536,29 +449,6 @@ def _registered(registration, measured: MeasuredMotion) -> Frames:
     return registered_frames(registration)
 
 
-def _check_length(reference: Reference, t: np.ndarray) -> None:
-    """Refuse a recording shorter than one cycle of the reference (or a breath, without)."""
-    from ..references.motion import reference_cycles
-
-    span = float(t[-1] - t[0])
-    period = getattr(reference, "repeat_period_s", None)
-    end = getattr(reference, "end_time", None)
-    if period is None:
-        try:
-            starts, _ = reference_cycles(
-                reference, max(4 * span, 60.0) if end is None else float(end)
-            )
-            period = float(np.median(np.diff(starts)))
-        except InvalidConfigError:
-            period = MIN_SPAN_S
-    if span < period:
-        raise InvalidConfigError(
-            f"the measured motion lasts {span:.3g} s, shorter than one cycle of "
-            f"{getattr(reference, 'name', 'the reference')} ({period:.3g} s): record at least "
-            f"two cycles"
-        )
-
-
 def _frequencies(reference: Reference) -> dict:
     """The fundamentals of a reference that repeats ({} for one that does not)."""
     repeats = getattr(reference, "repeat_period_s", None) is not None
@@ -589,42 +479,6 @@ def _removed_words(d, offset, latency, clock, frames: Frames, removed, seen, res
     if resampled:
         lines.append(resampled)
     return lines
-
-
-def _uncompared(t_all, t_ref, whole: bool) -> dict:
-    """:attr:`Verification.uncompared` of the recording's times ``t_all`` on the reference's
-    clock, of which ``t_ref`` are compared; ``whole``: the clock known or searched among the
-    shifts that compare the whole recording (:func:`_search`)."""
-    before, after = t_all < t_ref[0], t_all > t_ref[-1]
-    return {
-        "whole": bool(whole),
-        "samples": int(t_all.size),
-        "before": int(before.sum()),
-        "after": int(after.sum()),
-        "before_s": float(t_ref[0] - t_all[0]),
-        "after_s": float(t_all[-1] - t_ref[-1]),
-    }
-
-
-def _outside_words(t_all, t_ref, window, holds_start: bool) -> list:
-    """The report's line on the parts of the recording outside the figures (none if none)."""
-    before = float(t_ref[0] - t_all[0])
-    after = float(t_all[-1] - t_ref[-1])
-    parts = []
-    if before > 0 or after > 0:
-        parts.append(
-            f"{before:.3g} s of the recording before the reference's start and {after:.3g} s "
-            f"after its end are not compared"
-        )
-    head = window[0] - t_ref[0]
-    tail = t_ref[-1] - window[1]
-    if head > 0 or tail > 0:
-        what = "the motion's first cycle, the start-up" if holds_start else "part of a cycle"
-        parts.append(
-            f"the figures are over whole cycles, t = {format_window(*window)} s: "
-            f"{head:.3g} s before ({what}) and {tail:.3g} s after are outside them"
-        )
-    return ["what the figures leave out: " + "; ".join(parts)] if parts else []
 
 
 __all__ = [
