@@ -460,19 +460,16 @@ def _recovering(base: type) -> type:
     return _RecoveringCacheFile
 
 
-def _python_of(value):
+def _python_of(value, jit_off: bool):
     """The Python a kernel was compiled from (numba's ``py_func``); with ``NUMBA_DISABLE_JIT``
     the marked function itself (with the JIT on, a marked plain function is one compiled under
     another name, ``ik_compiled = _njit(ik_scalar)``, and not a kernel of its own); None for
-    anything else."""
+    anything else. ``jit_off``: numba's ``config.DISABLE_JIT``, read once by the caller."""
     f = getattr(value, "py_func", None)
     if callable(f):
         return f
-    if not (callable(value) and getattr(value, KERNEL_MARK, False)):
-        return None
-    import numba
-
-    return value if numba.config.DISABLE_JIT else None
+    marked = callable(value) and getattr(value, KERNEL_MARK, False)
+    return value if marked and jit_off else None
 
 
 def interpreted(namespace: dict) -> types.SimpleNamespace:
@@ -489,7 +486,10 @@ def interpreted(namespace: dict) -> types.SimpleNamespace:
         a namespace with one attribute per compiled function, of the same name.
     """
     plain = dict(namespace)
-    compiled = {k: f for k, v in namespace.items() if (f := _python_of(v)) is not None}
+    import numba
+
+    jit_off = bool(getattr(numba.config, "DISABLE_JIT", False))
+    compiled = {k: f for k, v in namespace.items() if (f := _python_of(v, jit_off)) is not None}
     for name, f in compiled.items():
         plain[name] = (
             types.FunctionType(f.__code__, plain, f.__name__, f.__defaults__, f.__closure__)

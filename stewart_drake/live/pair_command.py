@@ -14,7 +14,7 @@ from ..organ_motion.measured_verdict import (
 )
 from .pair_judgement import MAX_RELATIVE_LATENCY_S, verify_pair
 from .pair_report import write_pair
-from .verify_command import ENCODER_LOG_SUFFIX, exit_status
+from .verify_command import ENCODER_LOG_SUFFIX, exit_status, record_options
 
 #: ``--surrogate``'s word for the motion's external signal made by a correlation model
 #: (:func:`~.external_reference.model_reference`) instead of a recorded file.
@@ -204,17 +204,7 @@ def _check_pair_options(args) -> None:
         )
     if args.save_registration:
         raise InvalidConfigError("--save-registration registers a tracker: leave --surrogate out")
-    record = [
-        option
-        for option, value in (
-            ("--record", args.record),
-            ("--action-level", args.action_level),
-            ("--operator", args.operator),
-            ("--phantom-serial", args.phantom_serial),
-            ("--notes", args.notes),
-        )
-        if value
-    ]
+    record = record_options(args)
     if record:
         raise InvalidConfigError(
             f"{record[0]} records one motion's verdict, and a pair has three: leave --surrogate "

@@ -271,11 +271,9 @@ def cmd_verify(args) -> int:
         if context is not None:
             from dataclasses import replace
 
-            from ..execution.options import is_trace_file
             from ..organ_motion.qa_record import write_record
 
-            trace = [args.motion] if is_trace_file(args.motion) else []
-            inputs = [m.path, *trace, *([args.registration] if args.registration else [])]
+            inputs = _record_inputs(args, m.path)
             identities = tuple(held[str(p)] for p in inputs if str(p) in held)
             pdf, record = write_record(
                 ver,
@@ -306,6 +304,22 @@ def exit_status(verdicts) -> int:
     return 0
 
 
+def record_options(args) -> list[str]:
+    """The options of a QA record given on the command line (``--record`` first when given,
+    then those it takes), in that order: one list for the checks that refuse them."""
+    return [
+        option
+        for option, value in (
+            ("--record", args.record),
+            ("--action-level", args.action_level),
+            ("--operator", args.operator),
+            ("--phantom-serial", args.phantom_serial),
+            ("--notes", args.notes),
+        )
+        if value
+    ]
+
+
 def _record_context(args, tolerance):
     """The :class:`~stewart_drake.organ_motion.qa_record.RecordContext` of ``--record`` and its
     options, checked before any work (reportlab importable), or None without ``--record``.
@@ -319,18 +333,9 @@ def _record_context(args, tolerance):
     from ..organ_motion.fidelity import parse_tolerance
     from ..organ_motion.qa_record import RecordContext, _reportlab
 
-    given = [
-        option
-        for option, value in (
-            ("--action-level", args.action_level),
-            ("--operator", args.operator),
-            ("--phantom-serial", args.phantom_serial),
-            ("--notes", args.notes),
-        )
-        if value
-    ]
+    given = record_options(args)
     if not args.record:
-        if given:
+        if given:  # --record itself is not among them
             raise InvalidConfigError(f"{given[0]} is for the QA record: add --record")
         return None
     if args.save_registration:
@@ -361,12 +366,19 @@ def _identities(args, context) -> dict:
     the hash of the bytes judged, or refuses to be written."""
     if context is None:
         return {}
-    from ..execution.options import is_trace_file
     from ..organ_motion.qa_record import file_identity
 
-    paths = [*args.measured, *([args.motion] if is_trace_file(args.motion) else [])]
-    paths += [args.registration] if args.registration else []
+    paths = [p for measured in args.measured for p in _record_inputs(args, measured)]
     return {str(p): file_identity(p) for p in paths}
+
+
+def _record_inputs(args, measured) -> list:
+    """The files a record of the measured file ``measured`` names: it, the motion's trace file
+    (a named motion has none) and the registration, in that order."""
+    from ..execution.options import is_trace_file
+
+    trace = [args.motion] if is_trace_file(args.motion) else []
+    return [measured, *trace, *([args.registration] if args.registration else [])]
 
 
 def _earlier_verdict(path) -> str:
