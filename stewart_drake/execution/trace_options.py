@@ -19,10 +19,10 @@ def add_trace_arguments(parser) -> None:
     # SMOOTHING_MODES and SEAM_BLEND_S).
     parser.add_argument(
         "--format",
-        choices=["auto", "csv", "phantom", "surrogate"],
+        choices=["auto", "csv", "phantom", "surrogate", "vxp"],
         default="auto",
-        help="a trace's layout: auto reads a header line, else 7 columns as the phantom "
-        "format and 2 as a surrogate",
+        help="a trace's layout: auto reads a header line (a Varian RPM .vxp export by its "
+        "[Header]), else 7 columns as the phantom format and 2 as a surrogate",
     )
     parser.add_argument(
         "--columns",

@@ -6,7 +6,8 @@ spaces, with a decimal point or (with any separator but commas) a decimal comma.
 names the columns and their units, or the ``columns`` given do (the same words, comma
 separated), or it has none and is one of the phantom formats (:data:`TRACE_FORMATS`, by its
 width when "auto"): the 7-column 6-D format :data:`PHANTOM_COLUMNS`, or a 2-column external
-surrogate :data:`SURROGATE_COLUMNS` (its displacement on SI unless an axis map says otherwise).
+surrogate :data:`SURROGATE_COLUMNS` (its displacement on SI unless an axis map says otherwise);
+or a Varian RPM export (``.vxp``, :mod:`~.vxp_files`: its header names its fields).
 :func:`read_trace_table` splits the text into a header and rows; :func:`trace_samples` reads
 the rows into a :class:`TraceTable` of times and numbers. What becomes of them (resampled,
 low-passed, centred: a reference) is :func:`~.traces.load_trace`'s.
@@ -25,6 +26,7 @@ from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..robot.kinematics import AXIS_NAMES
 from .organ.core import axis_index
 from .organ.library import UNITS
+from .vxp_files import VXP_AXIS, VXP_LAYOUT, VXP_OPENING, is_vxp, vxp_table
 
 #: Largest trace file read, bytes (several hours at 100 Hz).
 MAX_TRACE_BYTES = 256e6
@@ -35,8 +37,9 @@ TRACE_BYTES_PER_LINE = 2.8e3
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
 #: The layouts :func:`load_trace` reads (``format``): "auto" (a header line, else the width
 #: decides: 7 columns are "phantom", 2 are "surrogate"), "csv" (a header line naming each
-#: column and its unit), "phantom", "surrogate".
-TRACE_FORMATS = ("auto", "csv", "phantom", "surrogate")
+#: column and its unit), "phantom", "surrogate", "vxp" (a Varian RPM export: "auto" knows it by
+#: its ``[Header]``).
+TRACE_FORMATS = ("auto", "csv", "phantom", "surrogate", "vxp")
 #: The columns of the 6-D motion phantom format (Image-X Institute's IntERAct: text without a
 #: header, one sample per line, numbers separated by spaces, 5 Hz in its library): time, the
 #: target's translation in the patient's axes, and its rotation about them.
@@ -169,6 +172,18 @@ def read_trace_table(
     del raw
     if "\0" in text:
         raise CorruptFileError(path, "trace file", "not text (a NUL byte)", remedy)
+    if format == "vxp" or (format == "auto" and is_vxp(text)):
+        if not is_vxp(text):
+            raise InvalidConfigError(
+                f"{path}: not a Varian RPM export (its first line is not {VXP_OPENING}); leave "
+                "--format vxp out to read it by its header"
+            )
+        if columns:
+            raise InvalidConfigError(
+                f"{path}: a Varian RPM export names its fields in its header (Data_layout): "
+                f"leave {columns_option} out"
+            )
+        return vxp_table(path, text)
     rows, layout = _split_lines(path, text, columns_option)
     del text
     if not rows:
@@ -401,6 +416,8 @@ def trace_samples(
     """
     if "surrogate" in layout:
         axis_map = {**SURROGATE_AXIS, **(axis_map or {})}
+    elif layout.startswith(VXP_LAYOUT):
+        axis_map = {**VXP_AXIS, **(axis_map or {})}
     frame = _frame_column(path, header)
     keep = [j for j, h in enumerate(header) if h.strip() != SKIP_COLUMN and j != frame[0]]
     if not keep:
