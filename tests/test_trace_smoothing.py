@@ -5,7 +5,7 @@ recording followed to within its rounding."""
 import numpy as np
 import pytest
 
-from stewart_drake.references.trace_cleaning import noise_estimate
+from stewart_drake.references.trace_cleaning import noise_estimate, smoothed_spline
 from stewart_drake.references.traces import load_trace
 
 
@@ -98,3 +98,23 @@ def test_a_looped_recording_has_its_seams_found_and_blended(tmp_path):
     # a synthetic periodic motion repeats exactly too, but is no loop
     short = _written(tmp_path, t[:150], np.tile(one[:20], 8)[:150], "periodic.csv")
     assert load_trace(short).info.seam_words() == "not a loop"
+
+
+def test_a_piece_fitpack_fails_on_is_refitted_and_stays_within_its_samples():
+    # Clean 5 Hz samples of a breath after a 0.95 s dropout behind the first two: FITPACK
+    # returns, for the piece of samples 1050-1250, "a theoretically impossible result" and a
+    # curve 2.9e12 times the motion there (scipy 1.14-1.16). Each piece is held within its
+    # samples' range widened by their span, and refitted when it is not.
+    t = np.arange(1821) / 5.0
+    t[2:] += 0.9521352266613923
+    y = 1.6793701890884476 * np.sin(2 * np.pi * t / 5.541719692216681)
+    y[:2] += 0.1512047059784977
+    curve, departure = smoothed_spline(t, y)
+    grid = np.linspace(t[0], t[-1], 100_000)
+    values = curve(grid)
+    assert values.max() <= y.max() + np.ptp(y) and values.min() >= y.min() - np.ptp(y)
+    # ... and follows the breath: between the samples as the sine itself, to 0.1 % of it.
+    inside = grid > t[2]
+    truth = 1.6793701890884476 * np.sin(2 * np.pi * grid[inside] / 5.541719692216681)
+    assert np.max(np.abs(values[inside] - truth)) < 2e-3 * 1.68
+    assert departure < 1e-6

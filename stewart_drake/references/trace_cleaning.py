@@ -44,6 +44,48 @@ def noise_estimate(yk: np.ndarray) -> float:
 PIECE_SAMPLES, PIECE_OVERLAP = 200, 50
 
 
+#: Points per sample interval at which a piece's curve is held within its samples' band.
+BAND_POINTS = 8
+
+
+def _within_band(fit, tk: np.ndarray, yk: np.ndarray) -> bool:
+    """Whether ``fit`` stays, between and at the samples, within the samples' range widened by
+    their own span either way (the bound a bridge across a gap keeps too)."""
+    lo, hi, span = float(yk.min()), float(yk.max()), float(np.ptp(yk))
+    grid = np.linspace(tk[0], tk[-1], BAND_POINTS * len(tk))
+    values = fit(grid)
+    return bool(
+        np.all(np.isfinite(values))
+        and values.min() >= lo - span - 1e-12
+        and values.max() <= hi + span + 1e-12
+    )
+
+
+def _piece_fit(tk: np.ndarray, yk: np.ndarray, s: float):
+    """One piece of :func:`smoothed_spline`: FITPACK's quintic at the discrepancy ``s``; where
+    FITPACK fails (on a clean recording, s near 0, it may report "a theoretically impossible
+    result" and return a curve 1e12 times the motion, for one piece of IntERAct-like 5 Hz
+    samples after a gap), or its curve leaves the samples' band (:func:`_within_band`), the
+    weight is doubled, up to four times; then a cubic spline through the samples, which
+    keeps their noise but never leaves them far."""
+    import warnings
+
+    from scipy.interpolate import CubicSpline, UnivariateSpline
+
+    for trial in range(5):
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            fit = UnivariateSpline(tk, yk, k=5, s=s * 2**trial)
+        # FITPACK warns when the noise is ~0 and it runs out of knots (the departure says it);
+        # "theoretically impossible" is its failure.
+        failed = any("impossible" in str(w.message) for w in said)
+        if not failed and _within_band(fit, tk, yk):
+            return fit
+        if s <= 0.0:
+            break
+    return CubicSpline(tk, yk)
+
+
 def smoothed_spline(tk: np.ndarray, yk: np.ndarray):
     """(curve, departure): the samples ``yk`` at ``tk`` joined without their measurement
     noise, as a callable of time, and the RMS by which the curve departs from them.
@@ -64,19 +106,12 @@ def smoothed_spline(tk: np.ndarray, yk: np.ndarray):
     :data:`PIECE_OVERLAP`, cross-faded over each overlap by the quintic smoothstep (a partition
     of unity, so the curve stays C2 and within the noise of both pieces).
     """
-    import warnings
-
-    from scipy.interpolate import UnivariateSpline
-
     tk, yk = np.asarray(tk, dtype=float), np.asarray(yk, dtype=float)
     n, s2 = len(yk), noise_estimate(yk) ** 2
     step = PIECE_SAMPLES - PIECE_OVERLAP
     starts = list(range(0, max(n - PIECE_OVERLAP, 1), step))
     pieces = [(a, n if a == starts[-1] else a + PIECE_SAMPLES) for a in starts]
-    with warnings.catch_warnings():
-        # FITPACK warns when the noise is ~0 and it runs out of knots: the departure says it.
-        warnings.simplefilter("ignore")
-        fits = [UnivariateSpline(tk[a:b], yk[a:b], k=5, s=(b - a) * s2) for a, b in pieces]
+    fits = [_piece_fit(tk[a:b], yk[a:b], (b - a) * s2) for a, b in pieces]
     # Piece i rises over (t at its start, t at the end of piece i - 1).
     rise = [(tk[a], tk[pieces[i][1] - 1]) for i, (a, _) in enumerate(pieces[1:])]
     support = [
