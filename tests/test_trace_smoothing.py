@@ -100,6 +100,51 @@ def test_a_looped_recording_has_its_seams_found_and_blended(tmp_path):
     assert load_trace(short).info.seam_words() == "not a loop"
 
 
+@pytest.mark.parametrize("loop_s", [217.6, 355.0, 202.4])
+def test_a_long_loop_of_one_rounded_axis_is_found_at_its_own_seams(tmp_path, loop_s):
+    """A 20-minute trace of one axis written to 0.1 mm, a recording of ``loop_s`` repeated: its
+    rows equal earlier ones by chance all through it (a value comes back every breath), which
+    are no seams; the loop is the recording, its seams where its end meets its start."""
+    rate = 5.0
+    t1 = np.arange(round(loop_s * rate)) / rate
+    phase = 2 * np.pi * np.cumsum(1 / (4 + 0.5 * np.sin(t1 / 23))) / rate
+    truth = (5 + np.sin(t1 / 31)) * np.sin(phase) + 1.5 * t1 / t1[-1]
+    one = np.round(truth, 1)
+    si = np.tile(one, 7)[: int(1200 * rate)]
+    t = np.arange(si.size) / rate
+    ref = load_trace(_written(tmp_path, t, si, "long_loop.csv"), centre_on="none")
+    copies = int(1200 // loop_s)
+    assert ref.info.loop_period_s == pytest.approx(loop_s)
+    assert ref.info.seams == copies
+    assert ref.info.seam_words().startswith(f"a loop of {loop_s:g} s: {copies} seams blended")
+    # The jump at a seam, said with its size: the step from the copy's end to its start less
+    # the mean of the steps either side (each copy's seam alike).
+    y0, y1, y2, y3 = one[-2], one[-1], one[0], one[1]
+    jump = abs((y2 - y1) - 0.5 * ((y1 - y0) + (y3 - y2)))
+    assert dict(ref.info.seam_jumps)["X"] * 1e3 == pytest.approx(jump, abs=1e-9)
+    # Away from the seams, the reference is the recording without its rounding (0.05 mm at
+    # most, 0.029 mm RMS), which the smoothing spline takes for noise: closer than the file in
+    # RMS, and at most two rounding steps off it where a breath turns.
+    seams = np.arange(1, copies + 1) * len(one) / rate - 0.1
+    far = np.min(np.abs(t[:, None] - seams[None, :]), axis=1) > 1.1
+    inner = far & (t > 1.0) & (t < t[-1] - 1.0)
+    error = ref.evaluate(t[inner])[0][:, 3] * 1e3 - np.tile(truth, 7)[: si.size][inner]
+    assert np.sqrt(np.mean(error**2)) < 0.029 and np.max(np.abs(error)) < 0.1
+
+
+def test_a_file_that_repeats_inside_without_starting_again_is_no_loop(tmp_path):
+    """A recording whose second half repeats a stretch from its middle (not its start) has
+    rows equal to earlier ones for most of it, but never starts again: not a loop, nothing
+    blended."""
+    rate = 5.0
+    t1 = np.arange(0.0, 300.0, 1 / rate)
+    one = np.round(5 * np.sin(2 * np.pi * t1 / 4.3) + 2 * np.sin(t1 / 17), 1)
+    si = np.concatenate([one, one[200:], one[200:]])
+    t = np.arange(si.size) / rate
+    ref = load_trace(_written(tmp_path, t, si, "inner_repeat.csv"), centre_on="none")
+    assert ref.info.seam_words() == "not a loop"
+
+
 def test_a_piece_fitpack_fails_on_is_refitted_and_stays_within_its_samples():
     # Clean 5 Hz samples of a breath after a 0.95 s dropout behind the first two: FITPACK
     # returns, for the piece of samples 1050-1250, "a theoretically impossible result" and a

@@ -173,14 +173,17 @@ def loop_seams(data: np.ndarray) -> LoopSeams | None:
     """The seams of ``data`` if it is a loop, else None.
 
     A looped recording (a short recording repeated to make a long trace, as IntERAct's liver 1:
-    62 s, 21 times) repeats its rows exactly, on every axis at once, which no patient does;
-    where the recording starts again the motion jumps (9.5 mm in 0.2 s on liver 1). A row
-    repeats when an earlier row equals it on every column, at least :data:`MIN_LOOP_SAMPLES`
-    before; the recording is a loop when at least :data:`MIN_LOOP_SHARE` of the rows from the
-    first repeat on repeat. Each repeating row has a source, the first row equal to it; a join
-    is where the sources stop running on one after another (the copies need not be of one
-    length: liver 1's are 310 and 311 samples), and a seam is a join where the motion steps
-    (:data:`SEAM_JUMP`).
+    62 s, 21 times) starts again from its first row, exactly, on every axis at once, which no
+    patient does; where it starts again the motion jumps (9.5 mm in 0.2 s on liver 1). A
+    restart is a row from which :data:`MIN_LOOP_SAMPLES` rows of the file's start come again,
+    equal on every column, from one of its first :data:`MIN_LOOP_SAMPLES` rows (IntERAct's
+    copies start again from its row 0 or 1), at least :data:`MIN_LOOP_SAMPLES` after the last
+    restart: the loop is found at the file's own seam, where the recording's end meets its
+    start, never inside it (a recording of one axis, rounded, holds many rows equal to an
+    earlier one by chance: those are no seams). Each copy, from a restart to the next (or the
+    file's end), must repeat the recording row for row over at least :data:`MIN_LOOP_SHARE` of
+    its rows (the copies need not be of one length: liver 1's are 310 and 311 samples). A seam
+    is a restart where the motion steps (:data:`SEAM_JUMP`).
 
     Args:
         data: (n, m) the axis columns as read (NaN: a missing cell).
@@ -188,31 +191,37 @@ def loop_seams(data: np.ndarray) -> LoopSeams | None:
         :class:`LoopSeams`, or None (not a loop).
     """
     data = np.ascontiguousarray(np.asarray(data, dtype=float))
-    n = len(data)
-    first: dict = {}
-    source = np.full(n, -1, dtype=np.int64)
-    for i, row in enumerate(data):
-        j = first.setdefault(row.tobytes(), i)
-        if i - j >= MIN_LOOP_SAMPLES:
-            source[i] = j
-    repeats = np.flatnonzero(source >= 0)
-    if repeats.size < MIN_LOOP_SAMPLES:
+    n, k = len(data), MIN_LOOP_SAMPLES
+    if n < 2 * k:
         return None
-    start = int(repeats[0])
-    if repeats.size < MIN_LOOP_SHARE * (n - start):
+    head: dict = {}
+    for j in range(k):
+        head.setdefault(data[j].tobytes(), j)
+    restarts: list = []  # (row, the recording's row it starts again from)
+    for i in range(k, n - k + 1):
+        j = head.get(data[i].tobytes())
+        if j is None or (restarts and i - restarts[-1][0] < k):
+            continue
+        if np.array_equal(data[i : i + k], data[j : j + k], equal_nan=True):
+            restarts.append((i, j))
+    if not restarts:
         return None
-    runs_on = (source[:-1] >= 0) & (source[1:] == source[:-1] + 1)
-    joins = [s for s in range(start - 1, n - 1) if source[s + 1] >= 0 and not runs_on[s]]
-    spacing = np.diff(joins) if len(joins) > 1 else [start - source[start]]
+    length = restarts[0][0]  # the recording: the rows before it first starts again
+    for (a, j), b in zip(restarts, [r for r, _ in restarts[1:]] + [n]):
+        m = min(b - a, length - j)
+        equal = np.all((data[a : a + m] == data[j : j + m]) | np.isnan(data[j : j + m]), axis=1)
+        if np.count_nonzero(equal) < MIN_LOOP_SHARE * m:
+            return None
+    rows = [r for r, _ in restarts]
     steps = np.diff(data, axis=0)
     jumps = steps[1:-1] - 0.5 * (steps[:-2] + steps[2:])  # row s - 1: _seam_steps' jump at s
     scale = 1.4826 * np.nanmedian(np.abs(jumps - np.nanmedian(jumps, axis=0)), axis=0)
     seams = tuple(
         s
-        for s in joins
+        for s in (r - 1 for r in rows)
         if 1 <= s <= len(jumps) and np.any(np.abs(np.nan_to_num(jumps[s - 1])) > SEAM_JUMP * scale)
     )
-    return LoopSeams(int(np.median(spacing)), seams)
+    return LoopSeams(int(np.median(np.diff([0, *rows]))), seams)
 
 
 def _seam_steps(data: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
