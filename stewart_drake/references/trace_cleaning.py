@@ -199,11 +199,11 @@ def loop_seams(data: np.ndarray) -> LoopSeams | None:
         head.setdefault(data[j].tobytes(), j)
     restarts: list = []  # (row, the recording's row it starts again from)
     for i in range(k, n - k + 1):
-        j = head.get(data[i].tobytes())
-        if j is None or (restarts and i - restarts[-1][0] < k):
+        source = head.get(data[i].tobytes())
+        if source is None or (restarts and i - restarts[-1][0] < k):
             continue
-        if np.array_equal(data[i : i + k], data[j : j + k], equal_nan=True):
-            restarts.append((i, j))
+        if np.array_equal(data[i : i + k], data[source : source + k], equal_nan=True):
+            restarts.append((i, source))
     if not restarts:
         return None
     length = restarts[0][0]  # the recording: the rows before it first starts again

@@ -130,7 +130,8 @@ def vxp_table(path: Path, text: str) -> tuple[list, list, str]:
     a, t = layout.index("amplitude"), layout.index("timestamp")
     v = layout.index("validflag") if "validflag" in layout else None
     need = max(a, t, -1 if v is None else v) + 1
-    rows, dropped = [], {}
+    rows: list = []
+    dropped: dict[int, int] = {}
     for number, line in enumerate(lines[first:], start=first + 1):
         if not line.strip():
             continue
