@@ -382,9 +382,9 @@ def test_a_recording_longer_than_its_reference_cannot_be_judged_without_its_cloc
     # 60 ms late at 20 Hz: the first two samples before the reference's start (at -60 and
     # -10 ms), and those past its 60 s from the tracker's 60.1 s to 119.95 s
     assert (n, given.uncompared["before"], after) == (2400, 2, 1198)
-    assert given.judgement.line.endswith(
+    assert (
         "; 1200 of 2400 measured samples not compared (50%: its first 100 ms, before the "
-        "reference's start; its last 59.9 s, after the reference's end)"
+        "reference's start; its last 59.9 s, after the reference's end); " in given.judgement.line
     )
 
 
@@ -743,3 +743,23 @@ def test_the_words_on_what_the_figures_leave_out():
         "1 s of the recording before the reference's start and 0 s after its end"
         in (span.outside_words(t_all[:-5], t_ref, (0, 22.0), 0)[0])
     )
+
+
+@pytest.mark.parametrize("dy_mm, said", [(5.5, True), (0.101, True), (0.099, False), (0.0, False)])
+def test_a_constant_removed_beyond_the_tolerance_is_said_on_the_verdict_line(dy_mm, said):
+    # A localisation error of dy on Y, the tracker's axes the base's: --frame axes removes it
+    # and passes; the verdict line says so when it is larger than the 0.1 mm tolerance.
+    t, x = run()
+    measured = MeasuredMotion("m.csv", "tracker", t, positions(x, (0.0, dy_mm * 1e-3, 0.0)), XYZ)
+    ver = verify(MOTION, measured, clock_offset_s=CLOCK_OFFSET_S, tolerance=TOLERANCE)
+    assert ver.judgement.passed and ver.offsets[4] == pytest.approx(dy_mm * 1e-3, abs=1e-9)
+    words = f"a constant removed and not judged, larger than the tolerance: Y +{dy_mm:.4g} mm ("
+    assert (words in ver.judgement.line) is said
+    assert ("constant removed" in ver.judgement.line) is said
+    # The base frame removes nothing: the same 5.5 mm is judged, and fails.
+    if dy_mm == 5.5:
+        base = verify(
+            MOTION, measured, clock_offset_s=CLOCK_OFFSET_S, tolerance=TOLERANCE, frame="base"
+        )
+        assert not base.judgement.passed and "constant removed" not in base.judgement.line
+        assert "Y 5.5 mm" in base.judgement.line

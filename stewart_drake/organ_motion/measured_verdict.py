@@ -521,6 +521,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         + (f"; cause: {'; '.join(causes)}" if causes else "")
         + (f"; {left_out}" if left_out and not too_much else "")
         + (f"; {unseen}" if unseen else "")
+        + removed_offset_words(ver, tolerance)
     )
     return Judgement(
         passed,
@@ -531,6 +532,32 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         latency_judged,
         sensitivity(t[m], x_d[m], measured, tolerance, ver.frame.removes_offsets),
         unseen,
+    )
+
+
+def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
+    """The verdict line's words on the constants the frames removed ("" when none is larger
+    than its axis's tolerance): with ``--frame axes`` each measured axis's mean error is removed
+    and not judged, as phantom QA protocols do (a tracker's origin is anywhere); one larger than
+    the tolerance may be that origin, or a phantom set down off its place, or a localisation
+    error, and a verdict that passes it says so. ``ver.offsets`` (6,) m and rad."""
+    if not ver.frame.removes_offsets:
+        return ""
+    offsets = np.asarray(getattr(ver, "offsets", np.zeros(6)), dtype=float)
+    measured = np.asarray(ver.measured.measured, dtype=bool)
+    beyond = measured & (np.abs(offsets) > axis_tolerances(tolerance))
+    if not np.any(beyond):
+        return ""
+    amounts = ", ".join(
+        f"{AXES[k]} {offsets[k] * 1e3:+.4g} mm"
+        if k >= 3
+        else f"{AXES[k]} {'+' if offsets[k] > 0 else '-'}{axis_amount(k, offsets[k])}"
+        for k in np.flatnonzero(beyond)
+    )
+    return (
+        f"; a constant removed and not judged, larger than the tolerance: {amounts} (each "
+        "measured axis's mean error, with --frame axes: a tracker's origin, a phantom set down "
+        "off its place, or a localisation error; --frame base or --registration judges it)"
     )
 
 
@@ -585,5 +612,6 @@ __all__ = [
     "judge",
     "seconds",
     "uncompared_words",
+    "removed_offset_words",
     "MAX_UNCOMPARED_SHARE",
 ]
