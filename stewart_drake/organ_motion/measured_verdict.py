@@ -551,7 +551,7 @@ def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
     amounts = ", ".join(
         f"{AXES[k]} {offsets[k] * 1e3:+.4g} mm"
         if k >= 3
-        else f"{AXES[k]} {'+' if offsets[k] > 0 else '-'}{axis_amount(k, offsets[k])}"
+        else f"{AXES[k]} {'+' if offsets[k] > 0 else '-'}{axis_amount(int(k), offsets[k])}"
         for k in np.flatnonzero(beyond)
     )
     return (
