@@ -426,27 +426,36 @@ def test_the_words_on_the_samples_left_out():
 
 def test_the_words_on_the_samples_steps():
     t = 0.02 * np.arange(100)
-    assert vn._samples(t, 0.5) == ""
+    assert vn._samples(t, 0.5) == ("", ())
     t[50:] += 0.0001  # one step 0.5 % long: even
-    assert vn._samples(t, 0.5) == ""
+    assert vn._samples(t, 0.5) == ("", ())
     t[60:] += 0.0003  # one 1.5 % long
     assert vn._samples(t, 0.5) == (
         "the samples' steps range 20-20.3 ms (median 20 ms): each is judged at its own time, "
-        "nothing resampled"
+        "nothing resampled",
+        (),
     )
     t[70:] += 0.47
-    assert vn._samples(t, 0.5).startswith("the samples' steps range 20-490 ms")
+    assert vn._samples(t, 0.5)[0].startswith("the samples' steps range 20-490 ms")
     t[70:] += 0.011
     with pytest.raises(InvalidConfigError) as err:
         vn._samples(t, 0.5)
     assert str(err.value).startswith(
-        "the measured samples stop for 501 ms after t = 1.3804 s of the file (the tracker lost "
-        "the marker?), longer than --measured-max-gap 500 ms: verify compares"
+        "the measured samples stop for 501 ms after t = 1.3804 s of the file, longer than "
+        "--measured-max-gap 500 ms: verify compares"
     )
+    # A registration's refusal does not offer a pause it cannot take.
+    with pytest.raises(InvalidConfigError) as err:
+        vn._samples(t, 0.5, pausable=False)
+    assert "--measured-pauses" not in str(err.value) and "lost the marker" in str(err.value)
+    # As a pause: named, and the steps' words are those within the segments (20-20.3 ms).
+    words, pauses = vn._samples(t, 0.5, pauses=True)
+    assert pauses == (pytest.approx((1.3804, 0.501)),)
+    assert words.startswith("the samples' steps range 20-20.3 ms")
     # A step of the largest gap exactly is judged across.
     t = 0.25 * np.arange(40)
     t[20:] += 0.25
-    assert vn._samples(t, 0.5).startswith("the samples' steps range 250-500 ms")
+    assert vn._samples(t, 0.5)[0].startswith("the samples' steps range 250-500 ms")
 
 
 def test_the_shifts_searched():
@@ -763,3 +772,56 @@ def test_a_constant_removed_beyond_the_tolerance_is_said_on_the_verdict_line(dy_
         )
         assert not base.judgement.passed and "constant removed" not in base.judgement.line
         assert "Y 5.5 mm" in base.judgement.line
+
+
+def _paused(x_of_t, t, start=140.0, stop=190.825):
+    """The tracker's samples of ``x_of_t`` with none from ``start`` to ``stop`` (its clock, s):
+    a planned pause of 50.8 s between two imaging arcs."""
+    keep = ~((t > start) & (t < stop))
+    return MeasuredMotion("m.csv", "tracker", t[keep], positions(x_of_t)[keep], XYZ)
+
+
+def test_a_planned_pause_is_refused_by_default_naming_the_option_and_judged_as_segments():
+    t, x = run(seconds=120.0, rate_hz=20.0)
+    measured = _paused(x, t)
+    with pytest.raises(InvalidConfigError, match="give --measured-pauses to judge") as err:
+        verify(MOTION, measured, clock_offset_s=CLOCK_OFFSET_S, tolerance=TOLERANCE)
+    # The samples at 140 s and 190.85 s of the tracker's 20 Hz clock either side.
+    assert "stop for 50.85 s after t = 140 s of the file" in str(err.value)
+    for clock in (CLOCK_OFFSET_S, None):
+        ver = verify(MOTION, measured, clock_offset_s=clock, tolerance=TOLERANCE, pauses=True)
+        assert ver.judgement.passed and ver.pauses == (pytest.approx((140.0, 50.85)),)
+        assert (
+            "; judged in 2 segments across a pause (50.85 s after t = 140 s of the file): each "
+            "sample at its own time, nothing bridged" in ver.judgement.line
+        )
+        # The steps within the segments are even: no word on them.
+        assert not any("steps range" in w for w in ver.removed)
+    # A robot that stopped during the pause and never moved again fails, clock known or not.
+    held = x.copy()
+    held[t > 140.0] = x[np.flatnonzero(t > 140.0)[0]]
+    for clock in (CLOCK_OFFSET_S, None):
+        ver = verify(
+            MOTION, _paused(held, t), clock_offset_s=clock, tolerance=TOLERANCE, pauses=True
+        )
+        assert not ver.judgement.passed and ver.judgement.line.startswith("FAIL")
+    # Without a pause, pauses changes nothing.
+    plain = verify(
+        MOTION,
+        MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ),
+        clock_offset_s=CLOCK_OFFSET_S,
+        tolerance=TOLERANCE,
+        pauses=True,
+    )
+    assert plain.pauses == () and "segments" not in plain.judgement.line
+
+
+def test_many_pauses_are_counted_past_the_third():
+    from stewart_drake.organ_motion.measured_verdict import pause_words
+
+    words = pause_words(((10.0, 1.0), (20.0, 2.0), (30.0, 3.0), (40.0, 4.0), (50.0, 5.0)))
+    assert words == (
+        "; judged in 6 segments across 5 pauses (1 s after t = 10 s, 2 s after t = 20 s, 3 s "
+        "after t = 30 s and 2 more of the file): each sample at its own time, nothing bridged"
+    )
+    assert pause_words(()) == ""

@@ -550,3 +550,58 @@ def test_a_run_logged_a_period_short_of_two_breaths_is_judged_over_its_second():
             REFERENCE,
             MeasuredMotion("r_encoders.csv", "encoders", t[short], x[short], np.ones(6, bool)),
         )
+
+
+def test_a_paused_export_is_refused_naming_the_option_and_judged_in_segments_with_it(
+    tmp_path, capsys
+):
+    # 40 s at 100 Hz with no sample from 15 s to 27 s of the run: an imaging arc's pause.
+    t, x = phantom_run()
+    keep = ~((t - t[0] > 15.0) & (t - t[0] < 27.0))
+    export = write_marker_export(
+        tmp_path / "paused.csv", t[keep], tracker_view(x, aligned=True)[keep, 3:]
+    )
+    options = export_options(export)
+    code, reports = run_verify(tmp_path, *options)
+    err = capsys.readouterr().err
+    assert code == 2 and reports == [] and "stop for 12.01 s after t = 138.446 s of the file" in err
+    assert "give --measured-pauses to judge the stretches either side" in err
+    code, (figures,) = run_verify(tmp_path, *options, "--measured-pauses")
+    assert code == 0, capsys.readouterr().out
+    line = figures["verdict"]["line"]
+    assert (
+        line.startswith("PASS")
+        and "judged in 2 segments across a pause (12.01 s after t = 138.446 s of the file)" in line
+    )
+    # A pair and a registration take no pause, refused before any work.
+    assert 2 == main(
+        [
+            "verify",
+            "breathing",
+            *PARAMS,
+            "--out",
+            str(tmp_path / "p"),
+            *options,
+            "--measured-pauses",
+            "--surrogate",
+            str(export),
+            "--measured-surrogate",
+            str(export),
+        ]
+    )
+    assert "--measured-pauses judges one motion in segments" in capsys.readouterr().err
+    assert 2 == main(
+        [
+            "verify",
+            "breathing",
+            *PARAMS,
+            "--out",
+            str(tmp_path / "r"),
+            "--measured",
+            str(export),
+            "--measured-pauses",
+            "--save-registration",
+            str(tmp_path / "r.yaml"),
+        ]
+    )
+    assert "leave --measured-pauses out" in capsys.readouterr().err

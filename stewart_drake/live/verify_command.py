@@ -99,7 +99,14 @@ def _add_measured_arguments(vp) -> None:
         metavar="S",
         help="the longest step between two measured samples judged across, s: the samples are "
         "judged at their own times, nothing interpolated; a longer gap (the tracker lost the "
-        "marker) is refused where it is",
+        "marker) is refused where it is, unless --measured-pauses",
+    )
+    vp.add_argument(
+        "--measured-pauses",
+        action="store_true",
+        help="a step longer than --measured-max-gap is a planned pause (between imaging arcs): "
+        "the stretches either side are judged as segments of one run, each sample at its own "
+        "time, nothing bridged; the verdict names the pauses",
     )
 
 
@@ -208,6 +215,11 @@ def cmd_verify(args) -> int:
         raise InvalidConfigError(
             "--save-registration fits the frames itself: leave --registration and --frame out"
         )
+    if args.save_registration and args.measured_pauses:
+        raise InvalidConfigError(
+            "--save-registration fits the frames to one unbroken motion: leave --measured-pauses "
+            "out and cut the file to a stretch without a pause"
+        )
     if args.save_registration and len(args.measured) != 1:
         raise InvalidConfigError("--save-registration fits one measured run: give one --measured")
     scenario, name = motion_scenario(args)
@@ -262,6 +274,7 @@ def cmd_verify(args) -> int:
             max_latency_s=args.max_latency,
             tolerance=tolerance,
             max_gap_s=args.measured_max_gap,
+            pauses=args.measured_pauses,
         )
         replaced = _earlier_verdict(out / f"{stem}.json")
         md, png, js = write_verification(ver, out, tolerance, stem)

@@ -521,6 +521,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         + (f"; cause: {'; '.join(causes)}" if causes else "")
         + (f"; {left_out}" if left_out and not too_much else "")
         + (f"; {unseen}" if unseen else "")
+        + pause_words(getattr(ver, "pauses", ()))
         + removed_offset_words(ver, tolerance)
     )
     return Judgement(
@@ -532,6 +533,25 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         latency_judged,
         sensitivity(t[m], x_d[m], measured, tolerance, ver.frame.removes_offsets),
         unseen,
+    )
+
+
+#: Pauses named one by one on a verdict line; more are counted.
+NAMED_PAUSES = 3
+
+
+def pause_words(pauses) -> str:
+    """The verdict line's words on the planned pauses the segments were judged across ("" for
+    none): ``pauses`` ((t of the file before the pause, s; its length, s), ...)."""
+    if not pauses:
+        return ""
+    named = [f"{seconds(length)} after t = {t:.6g} s" for t, length in pauses[:NAMED_PAUSES]]
+    more = len(pauses) - NAMED_PAUSES
+    listed = ", ".join(named) + (f" and {more} more" if more > 0 else "")
+    which = "a pause" if len(pauses) == 1 else f"{len(pauses)} pauses"
+    return (
+        f"; judged in {len(pauses) + 1} segments across {which} ({listed} of the file): "
+        "each sample at its own time, nothing bridged"
     )
 
 
@@ -613,5 +633,7 @@ __all__ = [
     "seconds",
     "uncompared_words",
     "removed_offset_words",
+    "pause_words",
+    "NAMED_PAUSES",
     "MAX_UNCOMPARED_SHARE",
 ]

@@ -131,7 +131,7 @@ def _check_registration_input(measured: MeasuredMotion, name: str, max_gap_s: fl
             f"{measured.path}: a registration takes the marker's three rotations or none"
         )
     t = measured.t
-    _samples(t, max_gap_s)
+    _samples(t, max_gap_s, pausable=False)  # a registration takes no pause
     if t[-1] - t[0] < MIN_REGISTRATION_S:
         raise InvalidConfigError(
             f"{measured.path}: the registration motion lasts {seconds(t[-1] - t[0])}, shorter "

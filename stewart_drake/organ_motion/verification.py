@@ -145,6 +145,8 @@ class Verification:
             before the reference's start and after its end, "before_s", "after_s": their
             spans, s, "whole": whether the clock was known or searched among the shifts that
             compare the whole recording}: what the verdict leaves out (its line says so).
+        pauses: ((t of the file before the pause, s; its length, s), ...): the planned pauses
+            the segments were judged across (``verify``'s ``pauses``), () without.
         judgement: the verdict (:class:`~.measured_verdict.Judgement`), set by :func:`verify`.
     """
 
@@ -165,6 +167,7 @@ class Verification:
     searched_s: tuple = (0.0, 0.0)
     max_latency_s: float = MAX_LATENCY_S
     uncompared: dict = field(default_factory=dict)
+    pauses: tuple = ()
     judgement: Any = None
     learn_cycles: int = 0
     scale: float = 1.0
@@ -185,32 +188,49 @@ class Verification:
         return (0.0, 0.0)
 
 
-def _samples(t: np.ndarray, max_gap_s: float) -> str:
-    """The words on the samples' steps ("" when even to :data:`MAX_JITTER`): they are judged
-    at their own times, never resampled (an interpolation between two noisy samples halves
-    their noise and flatters the figures).
+def _samples(
+    t: np.ndarray, max_gap_s: float, pauses: bool = False, pausable: bool = True
+) -> tuple[str, tuple]:
+    """(the words on the samples' steps, "" when even to :data:`MAX_JITTER`; the pauses, ((t
+    of the file before it, s; its length, s), ...)): the samples are judged at their own times,
+    never resampled (an interpolation between two noisy samples halves their noise and
+    flatters the figures). With ``pauses`` a step longer than ``max_gap_s`` is a planned pause
+    (between imaging arcs): the stretches either side are segments of one run, each judged at
+    its own samples' times, nothing bridged; the steps' words are then of the steps within the
+    segments. ``pausable``: whether the command takes ``--measured-pauses`` (its refusal
+    names it).
 
     Raises:
-        InvalidConfigError: a step longer than ``max_gap_s`` (the tracker lost the marker),
-            where it is named.
+        InvalidConfigError: without ``pauses``, a step longer than ``max_gap_s`` (the tracker
+            lost the marker, or a planned pause), where it is named.
     """
     steps = np.diff(t)
     k = int(np.argmax(steps))
-    if steps[k] > max_gap_s:
+    if steps[k] > max_gap_s and not pauses:
         raise InvalidConfigError(
             f"the measured samples stop for {seconds(float(steps[k]))} after t = "
-            f"{t[k]:.6g} s of the file (the tracker lost the marker?), longer than "
-            f"--measured-max-gap {seconds(max_gap_s)}: verify compares measured samples only; "
-            "cut the file to a stretch without it, or give a larger --measured-max-gap to judge "
-            "the samples either side"
+            f"{t[k]:.6g} s of the file, longer than --measured-max-gap {seconds(max_gap_s)}: "
+            "verify compares measured samples only. "
+            + (
+                "A planned pause (between imaging arcs)? give --measured-pauses to judge the "
+                "stretches either side as segments of one run, nothing bridged. "
+                if pausable
+                else ""
+            )
+            + "The tracker lost the marker? cut the file to a stretch without it"
         )
+    long = np.flatnonzero(steps > max_gap_s)
+    found = tuple((float(t[j]), float(steps[j])) for j in long)
+    steps = np.delete(steps, long)
+    if steps.size == 0:
+        return "", found
     dt = float(np.median(steps))
     if np.max(np.abs(steps - dt)) <= MAX_JITTER * dt:
-        return ""
+        return "", found
     return (
         f"the samples' steps range {steps.min() * 1e3:.4g}-{steps.max() * 1e3:.4g} ms "
         f"(median {dt * 1e3:.4g} ms): each is judged at its own time, nothing resampled"
-    )
+    ), found
 
 
 def _not_measured(fid: dict, measured: np.ndarray, t, x, x_d) -> dict:
@@ -254,6 +274,7 @@ def verify(
     max_latency_s: float = MAX_LATENCY_S,
     tolerance: tuple[float, float] = DEFAULT_TOLERANCE,
     max_gap_s: float = MAX_GAP_S,
+    pauses: bool = False,
     _whole: bool = True,
 ) -> Verification:
     """Judge a measured motion against the reference it was asked to follow (module docstring).
@@ -277,12 +298,16 @@ def verify(
         tolerance: (m, rad) the RMS error per axis that passes (the judgement's).
         max_gap_s: the longest step between two measured samples judged across, s: the
             samples are judged at their own times, nothing interpolated between them.
+        pauses: a longer step is a planned pause: the stretches either side are judged as
+            segments of one run (each sample at its own time, nothing bridged), and the
+            verdict line names the pauses; without, such a step is refused.
     Returns:
         :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
         InvalidConfigError: a frame that is neither "axes" nor "base"; a registration for a
             file without the marker's X, Y and Z; a file none of whose axes the reference moves
-            along; a step between samples longer than ``max_gap_s``; a recording not one whole
+            along; a step between samples longer than ``max_gap_s`` (without ``pauses``); a
+            recording not one whole
             cycle of the reference long (or a breath, without cycles), before or after the
             alignment; no overlap with the reference once aligned; a clock offset not within
             +-:data:`MAX_CLOCK_OFFSET_S`; the measured motion beyond
@@ -297,7 +322,7 @@ def verify(
         )
     t, y = measured.t, np.array(measured.poses, dtype=float)
     options = dict(frame=frame, registration=registration, max_latency_s=max_latency_s)
-    options.update(tolerance=tolerance, max_gap_s=max_gap_s)
+    options.update(tolerance=tolerance, max_gap_s=max_gap_s, pauses=pauses)
     if clock_offset_s is not None:
         check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
@@ -314,7 +339,7 @@ def verify(
             y = np.asarray(registration.base_poses(y), dtype=float)
         else:
             y[:, 3:] = y[:, 3:] @ frames.R_BT.T + frames.p_BT
-    resampled = _samples(t, max_gap_s)
+    resampled, paused = _samples(t, max_gap_s, pauses)
     check_length(reference, t)
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
     (lo, hi), whole = search_range(reference, t, clock_offset_s, max_latency_s, _whole)
@@ -374,6 +399,7 @@ def verify(
         searched_s=(lo, hi),
         max_latency_s=max_latency_s,
         uncompared=uncompared(t_rel + D, t_ref, whole),
+        pauses=paused,
     )
     ver.judgement = judge(ver, tolerance)
     if _whole and clock == "not known" and ver.judgement.verdict == "FAIL":
