@@ -19,6 +19,7 @@ from stewart_drake.organ_motion import verification as vn
 from stewart_drake.organ_motion.alignment import Frames
 from stewart_drake.organ_motion.fidelity import AXES, time_lag
 from stewart_drake.organ_motion.measured_motion import MeasuredMotion
+from stewart_drake.organ_motion.measured_verdict import uncompared_words
 from stewart_drake.organ_motion.verification import verify
 from stewart_drake.robot.geometry import StewartGeometry
 
@@ -363,29 +364,41 @@ def test_a_robot_that_stopped_or_ran_reversed_for_part_of_it_fails(how):
     assert left <= 0.1 * ver.uncompared["samples"]
 
 
-def test_a_recording_longer_than_its_reference_cannot_be_judged_without_its_clock():
+def test_a_recording_longer_than_its_reference_is_judged_on_what_no_clock_could_compare():
     """A 60 s trace followed, then 60 s at rest after its end: no shift compares the whole
-    recording; with the clock unknown the verdict cannot judge, and says how much it would leave
-    out and what to give; with the clock given it judges the 60 s and says the rest was not
-    compared."""
+    recording, and half of it is left out whatever the clock. The clock's own choice leaves
+    nothing more out, so the verdict judges the 60 s, the clock known or not, and says that the
+    recording outlasts the reference (IntERAct's camera recorded 53.6 s past a 302 s motion)."""
     short = Harmonics(LONG.amplitude, period_s=50.0, periodic=False, end_time=60.0,
                       centre=LONG.centre)  # fmt: skip
     t, y = part_of_long(stop_at=60.0, reference=short, start=0.0)
-    ver = judged(t, y, reference=short)
-    assert ver.judgement.verdict == "CANNOT JUDGE", ver.judgement.line
-    assert ver.uncompared["whole"] is False  # no shift compares 120 s against 60
-    assert "the clock found leaves" in ver.judgement.line
-    assert "give --clock-offset" in ver.judgement.line
-    given = judged(t, y, reference=short, clock_offset_s=-1000.0)
-    assert given.judgement.verdict == "PASS", given.judgement.line
-    n, after = given.uncompared["samples"], given.uncompared["after"]
-    # 60 ms late at 20 Hz: the first two samples before the reference's start (at -60 and
-    # -10 ms), and those past its 60 s from the tracker's 60.1 s to 119.95 s
-    assert (n, given.uncompared["before"], after) == (2400, 2, 1198)
-    assert (
-        "; 1200 of 2400 measured samples not compared (50%: its first 100 ms, before the "
-        "reference's start; its last 59.9 s, after the reference's end); " in given.judgement.line
-    )
+    for clock in (None, -1000.0):
+        ver = judged(t, y, reference=short, clock_offset_s=clock)
+        assert ver.judgement.verdict == "PASS", ver.judgement.line
+        assert ver.uncompared["longer_s"] == pytest.approx(119.95 - 60.0)
+        n, after = ver.uncompared["samples"], ver.uncompared["after"]
+        # 60 ms late at 20 Hz: the first two samples before the reference's start (at -60 and
+        # -10 ms), and those past its 60 s from the tracker's 60.1 s to 119.95 s
+        assert (n, ver.uncompared["before"], after) == (2400, 2, 1198)
+        assert (
+            "; 1200 of 2400 measured samples not compared (50%: its first 100 ms, before the "
+            "reference's start; its last 59.9 s, after the reference's end; the recording "
+            "59.95 s longer than the reference); " in ver.judgement.line
+        )
+    assert ver.uncompared["whole"] is True  # the clock given
+
+
+def test_a_longer_recording_whose_clock_leaves_out_more_than_it_must_cannot_be_judged():
+    """The words' rule at its edge: 50 % left out of a recording that outlasts its reference by
+    40 % of it is 10 % of the clock's own choosing (judged); by 39 %, 11 % (cannot judge)."""
+    base = {"whole": False, "samples": 1000, "before": 0, "after": 500, "before_s": 0.0,
+            "after_s": 50.0, "span_s": 100.0}  # fmt: skip
+    words, cannot = uncompared_words({**base, "longer_s": 40.0})
+    assert cannot == "" and "the recording 40 s longer than the reference" in words
+    _, cannot = uncompared_words({**base, "longer_s": 39.0})
+    assert cannot.startswith("the clock found leaves 500 of 1000 measured samples")
+    # A clock known, or searched over whole comparisons, is never refused for it.
+    assert uncompared_words({**base, "longer_s": 0.0, "whole": True})[1] == ""
 
 
 def test_a_recording_that_runs_on_past_the_motion_fails_and_says_what_would_tell():

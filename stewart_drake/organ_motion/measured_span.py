@@ -135,11 +135,21 @@ def check_length(reference: Reference, t: np.ndarray) -> None:
         )
 
 
-def uncompared(t_all, t_ref, whole: bool) -> dict:
+def uncompared(t_all, t_ref, whole: bool, reference: Reference | None = None) -> dict:
     """:attr:`Verification.uncompared` of the recording's times ``t_all`` on the reference's
     clock, of which ``t_ref`` are compared; ``whole``: the clock known or searched among the
-    shifts that compare the whole recording (:func:`search_range`)."""
+    shifts that compare the whole recording (:func:`search_range`); ``reference``: the motion,
+    whose length (from its start to its ``end_time``; none for one that repeats or has no end)
+    gives ``longer_s``, by how much the recording outlasts it: that much no clock can compare."""
     before, after = t_all < t_ref[0], t_all > t_ref[-1]
+    span = float(t_all[-1] - t_all[0])
+    end = getattr(reference, "end_time", None)
+    repeats = getattr(reference, "repeat_period_s", None) is not None
+    length = (
+        None
+        if end is None or repeats
+        else float(end) - float(getattr(reference, "start_time", 0.0))
+    )
     return {
         "whole": bool(whole),
         "samples": int(t_all.size),
@@ -147,6 +157,8 @@ def uncompared(t_all, t_ref, whole: bool) -> dict:
         "after": int(after.sum()),
         "before_s": float(t_ref[0] - t_all[0]),
         "after_s": float(t_all[-1] - t_ref[-1]),
+        "span_s": span,
+        "longer_s": 0.0 if length is None else max(0.0, span - length),
     }
 
 

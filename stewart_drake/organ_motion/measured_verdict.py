@@ -584,11 +584,12 @@ def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
 def uncompared_words(uncompared: dict) -> tuple[str, str]:
     """(the words on the measured samples outside the reference, "" if none; why the verdict
     cannot judge, "" unless a clock found among shifts that need not compare the whole recording
-    left more than :data:`MAX_UNCOMPARED_SHARE` of them). ``uncompared``: {"samples",
-    "before", "after", "before_s", "after_s", "whole"}, the recording's samples, those before
-    the reference's start and after its end, their spans, s, and whether the clock was known or
-    searched among the shifts that compare the whole recording
-    (:attr:`~.verification.Verification.uncompared`)."""
+    left more than :data:`MAX_UNCOMPARED_SHARE` of them beyond what the recording outlasts the
+    reference by). ``uncompared``: {"samples", "before", "after", "before_s", "after_s",
+    "whole", "span_s", "longer_s"}, the recording's samples, those before the reference's start
+    and after its end, their spans, s, whether the clock was known or searched among the shifts
+    that compare the whole recording, the recording's span and by how much it outlasts the
+    reference, s (:attr:`~.verification.Verification.uncompared`)."""
     n = int(uncompared.get("samples", 0))
     before, after = int(uncompared.get("before", 0)), int(uncompared.get("after", 0))
     if not n or not before + after:
@@ -602,10 +603,16 @@ def uncompared_words(uncompared: dict) -> tuple[str, str]:
         if count
     ]
     share = (before + after) / n
+    longer, span = float(uncompared.get("longer_s", 0.0)), float(uncompared.get("span_s", 0.0))
+    if longer > 0.0:
+        where.append(f"the recording {seconds(longer)} longer than the reference")
     words = (
         f"{before + after} of {n} measured samples not compared ({share:.0%}: {'; '.join(where)})"
     )
-    if uncompared.get("whole", True) or share <= MAX_UNCOMPARED_SHARE:
+    # What no clock could compare (a recording longer than its reference) is not the clock's
+    # choice: the share judged is of the rest.
+    chosen = share - (longer / span if span > 0.0 else 0.0)
+    if uncompared.get("whole", True) or chosen <= MAX_UNCOMPARED_SHARE:
         return words, ""
     return words, (
         f"the clock found leaves {words[0].lower() + words[1:]}, over "

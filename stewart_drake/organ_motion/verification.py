@@ -398,7 +398,7 @@ def verify(
         + outside_words(t_rel + D, t_ref, (w0, w1), holds_start),
         searched_s=(lo, hi),
         max_latency_s=max_latency_s,
-        uncompared=uncompared(t_rel + D, t_ref, whole),
+        uncompared=uncompared(t_rel + D, t_ref, whole, reference),
         pauses=paused,
     )
     ver.judgement = judge(ver, tolerance)
