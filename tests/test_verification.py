@@ -19,7 +19,7 @@ from stewart_drake.organ_motion import verification as vn
 from stewart_drake.organ_motion.alignment import Frames
 from stewart_drake.organ_motion.fidelity import AXES, time_lag
 from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.measured_verdict import uncompared_words
+from stewart_drake.organ_motion.verdict_notes import uncompared_words
 from stewart_drake.organ_motion.verification import verify
 from stewart_drake.robot.geometry import StewartGeometry
 
@@ -417,7 +417,7 @@ def test_a_recording_that_runs_on_past_the_motion_fails_and_says_what_would_tell
 
 
 def test_the_words_on_the_samples_left_out():
-    from stewart_drake.organ_motion.measured_verdict import uncompared_words
+    from stewart_drake.organ_motion.verdict_notes import uncompared_words
 
     counts = {"samples": 1000, "before": 60, "after": 41, "before_s": 3.0, "after_s": 0.5}
     words, why = uncompared_words({**counts, "whole": True})
@@ -830,7 +830,7 @@ def test_a_planned_pause_is_refused_by_default_naming_the_option_and_judged_as_s
 
 
 def test_many_pauses_are_counted_past_the_third():
-    from stewart_drake.organ_motion.measured_verdict import pause_words
+    from stewart_drake.organ_motion.verdict_notes import pause_words
 
     words = pause_words(((10.0, 1.0), (20.0, 2.0), (30.0, 3.0), (40.0, 4.0), (50.0, 5.0)))
     assert words == (

@@ -11,7 +11,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError
 from ..references.motion import Reference, reference_cycles
 from .fidelity import format_window
-from .measured_verdict import MAX_UNCOMPARED_SHARE
+from .verdict_notes import MAX_UNCOMPARED_SHARE
 
 #: With the clocks' relation known, latencies up to this many times the largest that passes
 #: are searched (at most 0.45 of a periodic reference's period, so that a cycle earlier or
@@ -37,7 +37,7 @@ def search_range(
     """((lo, hi) s: the shifts searched, whether they compare the whole recording). Known
     clocks: the offset less the latencies up to :data:`SEARCH_FACTOR` times ``max_latency_s``
     either way (at most 0.45 of a periodic reference's period). Unknown: the shifts that compare
-    the whole recording, either end allowed :data:`~.measured_verdict.MAX_UNCOMPARED_SHARE` of
+    the whole recording, either end allowed :data:`~.verdict_notes.MAX_UNCOMPARED_SHARE` of
     its length outside the reference (a tracker started a little before the motion), up to the
     reference's end (one period of a periodic one, :data:`MAX_SEARCH_S` of one without an end);
     a recording longer than the reference allows no such shift, and then its start may lie from

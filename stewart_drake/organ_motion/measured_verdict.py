@@ -29,13 +29,14 @@ measured axis k with the reference's motion r_k and the measured q_k, each less 
 A verdict names the measured samples it leaves uncompared, those the clock puts before the
 reference's start or after its end, on its line. With the clocks' relation not known, the clock
 is searched among the shifts that compare the whole recording, either end allowed
-:data:`MAX_UNCOMPARED_SHARE` of it outside the reference (a tracker started a little early): a
-search free to leave more out trades the recording's hard part for a better score (a robot that
-stopped, a platform that ran reversed for its first half) or cuts a right recording at a wrong
-repeat of its trace. A recording that no such shift fits (longer than its reference) is searched
-more widely, and a clock that then leaves more than :data:`MAX_UNCOMPARED_SHARE` uncompared
-makes the verdict CANNOT JUDGE, whether the rest would pass or fail. The clock given
-(``--clock-offset``) judges what the user said, and the verdict then says what it left out.
+:data:`~.verdict_notes.MAX_UNCOMPARED_SHARE` of it outside the reference (a tracker started a
+little early): a search free to leave more out trades the recording's hard part for a better
+score (a robot that stopped, a platform that ran reversed for its first half) or cuts a right
+recording at a wrong repeat of its trace. A recording that no such shift fits (longer than its
+reference) is searched more widely, and a clock that then leaves more than that share out beyond
+what the recording outlasts the reference by makes the verdict CANNOT JUDGE, whether the rest
+would pass or fail (:mod:`~.verdict_notes`). The clock given (``--clock-offset``) judges what
+the user said, and the verdict then says what it left out.
 
 A verdict that would PASS is CANNOT JUDGE instead when the phantom at rest would pass too: when
 on every measured axis the reference's own motion over the window (its RMS about its mean, the
@@ -60,6 +61,12 @@ import numpy as np
 
 from ..base.signals import PERIOD_POWER_SHARE, centred, dominant_period
 from .fidelity import AXES, format_angle, format_length, format_window
+from .verdict_notes import (
+    pause_words,
+    removed_offset_words,
+    seconds,
+    uncompared_words,
+)
 from .verdict_sensitivity import (
     MAX_TURN_RAD,
     axis_amount,
@@ -78,9 +85,6 @@ PERIOD_SHARE = 0.05
 #: A latency found within this many seconds of the edge of the shifts searched is "at least".
 EDGE_S = 0.05
 
-#: The largest share of the measured samples a clock found (the clocks' relation not known) may
-#: leave uncompared, outside the reference, and the verdict still judge (CANNOT JUDGE beyond).
-MAX_UNCOMPARED_SHARE = 0.1
 
 #: The largest further shift searched with a turn of the measured axes, s (half a breath).
 TURN_SEARCH_S = 2.5
@@ -536,97 +540,6 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     )
 
 
-#: Pauses named one by one on a verdict line; more are counted.
-NAMED_PAUSES = 3
-
-
-def pause_words(pauses) -> str:
-    """The verdict line's words on the planned pauses the segments were judged across ("" for
-    none): ``pauses`` ((t of the file before the pause, s; its length, s), ...)."""
-    if not pauses:
-        return ""
-    named = [f"{seconds(length)} after t = {t:.6g} s" for t, length in pauses[:NAMED_PAUSES]]
-    more = len(pauses) - NAMED_PAUSES
-    listed = ", ".join(named) + (f" and {more} more" if more > 0 else "")
-    which = "a pause" if len(pauses) == 1 else f"{len(pauses)} pauses"
-    return (
-        f"; judged in {len(pauses) + 1} segments across {which} ({listed} of the file): "
-        "each sample at its own time, nothing bridged"
-    )
-
-
-def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
-    """The verdict line's words on the constants the frames removed ("" when none is larger
-    than its axis's tolerance): with ``--frame axes`` each measured axis's mean error is removed
-    and not judged, as phantom QA protocols do (a tracker's origin is anywhere); one larger than
-    the tolerance may be that origin, or a phantom set down off its place, or a localisation
-    error, and a verdict that passes it says so. ``ver.offsets`` (6,) m and rad."""
-    if not ver.frame.removes_offsets:
-        return ""
-    offsets = np.asarray(getattr(ver, "offsets", np.zeros(6)), dtype=float)
-    measured = np.asarray(ver.measured.measured, dtype=bool)
-    beyond = measured & (np.abs(offsets) > axis_tolerances(tolerance))
-    if not np.any(beyond):
-        return ""
-    amounts = ", ".join(
-        f"{AXES[k]} {offsets[k] * 1e3:+.4g} mm"
-        if k >= 3
-        else f"{AXES[k]} {'+' if offsets[k] > 0 else '-'}{axis_amount(int(k), offsets[k])}"
-        for k in np.flatnonzero(beyond)
-    )
-    return (
-        f"; a constant removed and not judged, larger than the tolerance: {amounts} (each "
-        "measured axis's mean error, with --frame axes: a tracker's origin, a phantom set down "
-        "off its place, or a localisation error; --frame base or --registration judges it)"
-    )
-
-
-def uncompared_words(uncompared: dict) -> tuple[str, str]:
-    """(the words on the measured samples outside the reference, "" if none; why the verdict
-    cannot judge, "" unless a clock found among shifts that need not compare the whole recording
-    left more than :data:`MAX_UNCOMPARED_SHARE` of them beyond what the recording outlasts the
-    reference by). ``uncompared``: {"samples", "before", "after", "before_s", "after_s",
-    "whole", "span_s", "longer_s"}, the recording's samples, those before the reference's start
-    and after its end, their spans, s, whether the clock was known or searched among the shifts
-    that compare the whole recording, the recording's span and by how much it outlasts the
-    reference, s (:attr:`~.verification.Verification.uncompared`)."""
-    n = int(uncompared.get("samples", 0))
-    before, after = int(uncompared.get("before", 0)), int(uncompared.get("after", 0))
-    if not n or not before + after:
-        return "", ""
-    where = [
-        f"{which} {seconds(float(uncompared[f'{side}_s']))}, {what}"
-        for side, count, which, what in (
-            ("before", before, "its first", "before the reference's start"),
-            ("after", after, "its last", "after the reference's end"),
-        )
-        if count
-    ]
-    share = (before + after) / n
-    longer, span = float(uncompared.get("longer_s", 0.0)), float(uncompared.get("span_s", 0.0))
-    if longer > 0.0:
-        where.append(f"the recording {seconds(longer)} longer than the reference")
-    words = (
-        f"{before + after} of {n} measured samples not compared ({share:.0%}: {'; '.join(where)})"
-    )
-    # What no clock could compare (a recording longer than its reference) is not the clock's
-    # choice: the share judged is of the rest.
-    chosen = share - (longer / span if span > 0.0 else 0.0)
-    if uncompared.get("whole", True) or chosen <= MAX_UNCOMPARED_SHARE:
-        return words, ""
-    return words, (
-        f"the clock found leaves {words[0].lower() + words[1:]}, over "
-        f"{MAX_UNCOMPARED_SHARE:.0%} of the recording: the search may have cut the recording where "
-        "it departs; give --clock-offset (the measured time + it = the reference's) to judge "
-        "it on a known clock, or cut the file to the reference's span"
-    )
-
-
-def seconds(value: float) -> str:
-    """A time in s as text: ``60.1 ms`` below a second, else ``1232 s`` (4 digits)."""
-    return f"{value * 1e3:.4g} ms" if abs(value) < 1.0 else f"{value:.4g} s"
-
-
 __all__ = [
     "AT_REST_SHARE",
     "FOLLOWS_CORRELATION",
@@ -638,9 +551,4 @@ __all__ = [
     "compared_words",
     "judge",
     "seconds",
-    "uncompared_words",
-    "removed_offset_words",
-    "pause_words",
-    "NAMED_PAUSES",
-    "MAX_UNCOMPARED_SHARE",
 ]

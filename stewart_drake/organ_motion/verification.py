@@ -79,7 +79,8 @@ from .measured_span import (
     search_range,
     uncompared,
 )
-from .measured_verdict import judge, seconds, uncompared_words
+from .measured_verdict import judge, seconds
+from .verdict_notes import uncompared_words
 
 #: The largest latency that passes when the clocks' relation is known, s, unless given.
 MAX_LATENCY_S = 0.5
@@ -412,7 +413,7 @@ def _best_part(ver: Verification, reference: Reference, measured, options: dict)
     leave part of it out (:func:`search_range` not ``whole``): a recording whose tracker started
     well before the motion (a lead-in at rest) matches one cycle off when compared whole. That
     match is the verdict when it leaves at most
-    :data:`~.measured_verdict.MAX_UNCOMPARED_SHARE` out (its line says what); else the FAIL
+    :data:`~.verdict_notes.MAX_UNCOMPARED_SHARE` out (its line says what); else the FAIL
     stands, and when the part would pass what it compares, it says so: a robot that stopped and
     a recording that runs on past the motion's end look alike without the clock."""
     try:

@@ -1,0 +1,116 @@
+"""The verdict line's notes on what a verdict on a measured motion did not judge
+(:func:`~.measured_verdict.judge` appends them): the measured samples outside the reference
+(:func:`uncompared_words`, and when a clock that leaves too many out cannot judge), the planned
+pauses judged across (:func:`pause_words`), the constants the frames removed
+(:func:`removed_offset_words`). A verdict names what it leaves out on its own line, never only in
+its report."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .fidelity import AXES
+from .verdict_sensitivity import axis_amount, axis_tolerances
+
+#: The largest share of the measured samples a clock found (the clocks' relation not known) may
+#: leave uncompared, outside the reference, and the verdict still judge (CANNOT JUDGE beyond).
+MAX_UNCOMPARED_SHARE = 0.1
+#: Pauses named one by one on a verdict line; more are counted.
+NAMED_PAUSES = 3
+
+
+def seconds(value: float) -> str:
+    """A time in s as text: ``60.1 ms`` below a second, else ``1232 s`` (4 digits)."""
+    return f"{value * 1e3:.4g} ms" if abs(value) < 1.0 else f"{value:.4g} s"
+
+
+def uncompared_words(uncompared: dict) -> tuple[str, str]:
+    """(the words on the measured samples outside the reference, "" if none; why the verdict
+    cannot judge, "" unless a clock found among shifts that need not compare the whole recording
+    left more than :data:`MAX_UNCOMPARED_SHARE` of them beyond what the recording outlasts the
+    reference by). ``uncompared``: {"samples", "before", "after", "before_s", "after_s",
+    "whole", "span_s", "longer_s"}, the recording's samples, those before the reference's start
+    and after its end, their spans, s, whether the clock was known or searched among the shifts
+    that compare the whole recording, the recording's span and by how much it outlasts the
+    reference, s (:attr:`~.verification.Verification.uncompared`)."""
+    n = int(uncompared.get("samples", 0))
+    before, after = int(uncompared.get("before", 0)), int(uncompared.get("after", 0))
+    if not n or not before + after:
+        return "", ""
+    where = [
+        f"{which} {seconds(float(uncompared[f'{side}_s']))}, {what}"
+        for side, count, which, what in (
+            ("before", before, "its first", "before the reference's start"),
+            ("after", after, "its last", "after the reference's end"),
+        )
+        if count
+    ]
+    share = (before + after) / n
+    longer, span = float(uncompared.get("longer_s", 0.0)), float(uncompared.get("span_s", 0.0))
+    if longer > 0.0:
+        where.append(f"the recording {seconds(longer)} longer than the reference")
+    words = (
+        f"{before + after} of {n} measured samples not compared ({share:.0%}: {'; '.join(where)})"
+    )
+    # What no clock could compare (a recording longer than its reference) is not the clock's
+    # choice: the share judged is of the rest.
+    chosen = share - (longer / span if span > 0.0 else 0.0)
+    if uncompared.get("whole", True) or chosen <= MAX_UNCOMPARED_SHARE:
+        return words, ""
+    return words, (
+        f"the clock found leaves {words[0].lower() + words[1:]}, over "
+        f"{MAX_UNCOMPARED_SHARE:.0%} of the recording: the search may have cut the recording where "
+        "it departs; give --clock-offset (the measured time + it = the reference's) to judge "
+        "it on a known clock, or cut the file to the reference's span"
+    )
+
+
+def pause_words(pauses) -> str:
+    """The verdict line's words on the planned pauses the segments were judged across ("" for
+    none): ``pauses`` ((t of the file before the pause, s; its length, s), ...)."""
+    if not pauses:
+        return ""
+    named = [f"{seconds(length)} after t = {t:.6g} s" for t, length in pauses[:NAMED_PAUSES]]
+    more = len(pauses) - NAMED_PAUSES
+    listed = ", ".join(named) + (f" and {more} more" if more > 0 else "")
+    which = "a pause" if len(pauses) == 1 else f"{len(pauses)} pauses"
+    return (
+        f"; judged in {len(pauses) + 1} segments across {which} ({listed} of the file): "
+        "each sample at its own time, nothing bridged"
+    )
+
+
+def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
+    """The verdict line's words on the constants the frames removed ("" when none is larger
+    than its axis's tolerance): with ``--frame axes`` each measured axis's mean error is removed
+    and not judged, as phantom QA protocols do (a tracker's origin is anywhere); one larger than
+    the tolerance may be that origin, or a phantom set down off its place, or a localisation
+    error, and a verdict that passes it says so. ``ver.offsets`` (6,) m and rad."""
+    if not ver.frame.removes_offsets:
+        return ""
+    offsets = np.asarray(getattr(ver, "offsets", np.zeros(6)), dtype=float)
+    measured = np.asarray(ver.measured.measured, dtype=bool)
+    beyond = measured & (np.abs(offsets) > axis_tolerances(tolerance))
+    if not np.any(beyond):
+        return ""
+    amounts = ", ".join(
+        f"{AXES[k]} {offsets[k] * 1e3:+.4g} mm"
+        if k >= 3
+        else f"{AXES[k]} {'+' if offsets[k] > 0 else '-'}{axis_amount(int(k), offsets[k])}"
+        for k in np.flatnonzero(beyond)
+    )
+    return (
+        f"; a constant removed and not judged, larger than the tolerance: {amounts} (each "
+        "measured axis's mean error, with --frame axes: a tracker's origin, a phantom set down "
+        "off its place, or a localisation error; --frame base or --registration judges it)"
+    )
+
+
+__all__ = [
+    "MAX_UNCOMPARED_SHARE",
+    "NAMED_PAUSES",
+    "seconds",
+    "uncompared_words",
+    "pause_words",
+    "removed_offset_words",
+]
