@@ -838,3 +838,61 @@ def test_many_pauses_are_counted_past_the_third():
         "after t = 30 s and 2 more of the file): each sample at its own time, nothing bridged"
     )
     assert pause_words(()) == ""
+
+
+def _glitched(t, x, every=5, size_m=0.03, seed=3):
+    """The tracker's positions with every ``every``-th frame's marker mis-detected: ``size_m``
+    off on a random axis, either sign (163 of 874 frames up to 51 mm in a clinic's export)."""
+    y = positions(x)
+    rng = np.random.default_rng(seed)
+    bad = np.arange(7, len(t), every)
+    axes = 3 + rng.integers(0, 3, bad.size)
+    y[bad, axes] += size_m * rng.choice([-1.0, 1.0], bad.size) * rng.uniform(0.2, 1.0, bad.size)
+    return y, bad
+
+
+def test_outliers_are_counted_and_named_with_the_verdict_of_the_rest_and_can_be_excluded():
+    t, x = run(seconds=40.0, rate_hz=20.0)
+    y, bad = _glitched(t, x)
+    measured = MeasuredMotion("m.csv", "tracker", t, y, XYZ)
+    ver = verify(MOTION, measured, clock_offset_s=CLOCK_OFFSET_S, tolerance=TOLERANCE)
+    line = ver.judgement.line
+    assert line.startswith("FAIL")
+    # Every glitched frame compared is flagged, and nothing else (the clock puts the first
+    # frame 60 ms before the reference's start: not compared).
+    t_ref = t + CLOCK_OFFSET_S - LATENCY_S
+    compared = bad[t_ref[bad] >= 0.0]
+    assert sorted(ver.outliers["indices"]) == sorted(compared)
+    assert ver.outliers["samples"] == np.count_nonzero(t_ref >= 0.0)
+    assert (
+        f"; {compared.size} of {ver.outliers['samples']} frames compared are outliers (beyond 6 "
+        "robust SD and 5x" in line
+    )
+    assert "within the tolerance; --exclude-outliers judges without them" in line
+    # The rest's RMS: the clean frames, on a clock the outliers moved by ~10 ms (the breath's
+    # 5 mm at 0.25 Hz moves 0.08 mm in 10 ms: X's, the others' far less).
+    rest = ver.outliers["rest_rms"][3:]
+    assert rest[0] < 0.1e-3 and np.all(rest[1:] < 0.03e-3)
+    # Excluded: PASS, the count said; the clock the same.
+    clean = verify(MOTION, measured, clock_offset_s=CLOCK_OFFSET_S, tolerance=TOLERANCE,
+                   exclude_outliers=True)  # fmt: skip
+    assert clean.judgement.passed, clean.judgement.line
+    assert clean.excluded == compared.size
+    assert (
+        f"; {compared.size} frames excluded as outliers (--exclude-outliers" in clean.judgement.line
+    )
+    assert clean.latency_s == pytest.approx(LATENCY_S, abs=1e-4)
+
+
+@pytest.mark.parametrize("size_mm, flagged", [(0.45, False), (0.6, True)])
+def test_a_frame_is_an_outlier_only_beyond_five_tolerances(size_mm, flagged):
+    # One frame off by 4.5 or 6 tolerances (0.1 mm) on a clean run: the robust SD is ~0, so the
+    # tolerance's multiple decides.
+    t, x = run(seconds=20.0, rate_hz=50.0)
+    y = positions(x)
+    y[500, 4] += size_mm * 1e-3
+    ver = verify(MOTION, MeasuredMotion("m.csv", "tracker", t, y, XYZ),
+                 clock_offset_s=CLOCK_OFFSET_S, tolerance=TOLERANCE)  # fmt: skip
+    assert (ver.outliers["frames"] == 1) is flagged
+    assert ("frames compared are outliers" in ver.judgement.line) is flagged
+    assert ver.judgement.passed  # one frame in 1000 moves the RMS by ~size / 31

@@ -170,10 +170,11 @@ def _check_pair_options(args) -> None:
         InvalidConfigError: --surrogate-param without ``--surrogate model``, or a model refused
             (:func:`~stewart_drake.station.surrogate.report.correlation_model`); --surrogate-map
             with a model; a surrogate without its measurement or the reverse, several
-            --measured, --save-registration, --measured-pauses, a QA record's options
-            (``--record`` and those it takes: a record is of one motion's verdict), an encoder
-            log beside a tracker's file (not one clock) or with --measured-surrogate-columns or
-            -map (its columns are its own), --frame other than axes or base.
+            --measured, --save-registration, --measured-pauses, --exclude-outliers, a QA
+            record's options (``--record`` and those it takes: a record is of one motion's
+            verdict), an encoder log beside a tracker's file (not one clock) or with
+            --measured-surrogate-columns or -map (its columns are its own), --frame other than
+            axes or base.
     """
     if args.surrogate == MODEL:
         from ..station.surrogate.report import correlation_model
@@ -204,6 +205,11 @@ def _check_pair_options(args) -> None:
         )
     if args.save_registration:
         raise InvalidConfigError("--save-registration registers a tracker: leave --surrogate out")
+    if args.exclude_outliers:
+        raise InvalidConfigError(
+            "--exclude-outliers judges one motion without some of its frames: leave --surrogate "
+            "out and verify each motion alone"
+        )
     if args.measured_pauses:
         raise InvalidConfigError(
             "--measured-pauses judges one motion in segments, and a pair's relative latency "

@@ -102,6 +102,13 @@ def _add_measured_arguments(vp) -> None:
         "marker) is refused where it is, unless --measured-pauses",
     )
     vp.add_argument(
+        "--exclude-outliers",
+        action="store_true",
+        help="judge without the frames far off the rest (beyond 6 robust SD and 5x the "
+        "tolerance from the median error on some axis: a marker mis-detected); the verdict says "
+        "how many (without it, the verdict names them and what the rest would give)",
+    )
+    vp.add_argument(
         "--measured-pauses",
         action="store_true",
         help="a step longer than --measured-max-gap is a planned pause (between imaging arcs): "
@@ -275,6 +282,7 @@ def cmd_verify(args) -> int:
             tolerance=tolerance,
             max_gap_s=args.measured_max_gap,
             pauses=args.measured_pauses,
+            exclude_outliers=args.exclude_outliers,
         )
         replaced = _earlier_verdict(out / f"{stem}.json")
         md, png, js = write_verification(ver, out, tolerance, stem)

@@ -62,6 +62,7 @@ import numpy as np
 from ..base.signals import PERIOD_POWER_SHARE, centred, dominant_period
 from .fidelity import AXES, format_angle, format_length, format_window
 from .verdict_notes import (
+    outlier_words,
     pause_words,
     removed_offset_words,
     seconds,
@@ -525,6 +526,9 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         + (f"; cause: {'; '.join(causes)}" if causes else "")
         + (f"; {left_out}" if left_out and not too_much else "")
         + (f"; {unseen}" if unseen else "")
+        + outlier_words(
+            getattr(ver, "outliers", {}), measured, tolerance, getattr(ver, "excluded", 0)
+        )
         + pause_words(getattr(ver, "pauses", ()))
         + removed_offset_words(ver, tolerance)
     )

@@ -2,7 +2,8 @@
 (:func:`~.measured_verdict.judge` appends them): the measured samples outside the reference
 (:func:`uncompared_words`, and when a clock that leaves too many out cannot judge), the planned
 pauses judged across (:func:`pause_words`), the constants the frames removed
-(:func:`removed_offset_words`). A verdict names what it leaves out on its own line, never only in
+(:func:`removed_offset_words`), the frames far off the rest (:func:`outliers`,
+:func:`outlier_words`). A verdict names what it leaves out on its own line, never only in
 its report."""
 
 from __future__ import annotations
@@ -15,6 +16,12 @@ from .verdict_sensitivity import axis_amount, axis_tolerances
 #: The largest share of the measured samples a clock found (the clocks' relation not known) may
 #: leave uncompared, outside the reference, and the verdict still judge (CANNOT JUDGE beyond).
 MAX_UNCOMPARED_SHARE = 0.1
+#: A frame is an outlier when its error on some measured axis lies this many robust standard
+#: deviations (1.4826 x the median absolute deviation) from the median error...
+OUTLIER_SIGMAS = 6.0
+#: ... and this many times the axis's tolerance: a frame within a few tolerances is the motion's
+#: own error, never an outlier, however quiet the rest.
+OUTLIER_TOLERANCES = 5.0
 #: Pauses named one by one on a verdict line; more are counted.
 NAMED_PAUSES = 3
 
@@ -106,6 +113,81 @@ def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
     )
 
 
+def outliers(
+    t: np.ndarray, x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offsets=False
+) -> dict:
+    """The frames far off the rest (a marker mis-detected, a reflection taken for it): those
+    whose error x - x_d on some measured axis lies beyond :data:`OUTLIER_SIGMAS` robust standard
+    deviations of that axis's error from its median and beyond :data:`OUTLIER_TOLERANCES` times
+    its tolerance.
+
+    Args:
+        t: (n,) the frames' times, s. x, x_d: (n, 6) measured and reference, rad and m (NaN
+            where not measured). measured: (6,) bool. tolerance: (m, rad). removes_offsets:
+            the frames remove each axis's mean error (``--frame axes``): the other frames'
+            RMS is then about their own mean, as a verdict without the outliers takes it.
+    Returns:
+        {"frames": how many, "samples": n, "times": (k,) their times, "bound": (6,) each
+        axis's bound (NaN not measured), "largest": (6,) the largest |error - median| among
+        them, "rest_rms": (6,) the RMS error of the other frames, "mask": (n,) which frames}.
+    """
+    measured = np.asarray(measured, dtype=bool)
+    e = np.where(measured, np.asarray(x, dtype=float) - np.asarray(x_d, dtype=float), 0.0)
+    centred = np.abs(e - np.median(e, axis=0))
+    sigma = 1.4826 * np.median(centred, axis=0)
+    bound = np.maximum(OUTLIER_SIGMAS * sigma, OUTLIER_TOLERANCES * axis_tolerances(tolerance))
+    flagged = np.any((centred > bound) & measured, axis=1)
+    rest = e[~flagged] if np.any(~flagged) else e
+    if removes_offsets:
+        rest = rest - rest.mean(axis=0)
+    return {
+        "frames": int(flagged.sum()),
+        "samples": int(len(e)),
+        "times": np.asarray(t, dtype=float)[flagged],
+        "bound": np.where(measured, bound, np.nan),
+        "largest": np.where(
+            measured & flagged.any(), centred[flagged].max(axis=0, initial=0.0), 0.0
+        ),
+        "rest_rms": np.where(measured, np.sqrt(np.mean(rest**2, axis=0)), np.nan),
+        "mask": flagged,
+    }
+
+
+def outlier_words(found: dict, measured, tolerance, excluded: int = 0) -> str:
+    """The verdict line's words on :func:`outliers` ("" when there are none and none were
+    excluded): how many, how far, the verdict the other frames would have, and the option that
+    judges without them; or, ``excluded`` > 0, how many were left out."""
+    if excluded:
+        return (
+            f"; {excluded} frames excluded as outliers (--exclude-outliers: beyond "
+            f"{OUTLIER_SIGMAS:g} robust SD and {OUTLIER_TOLERANCES:g}x the tolerance from the "
+            "median error on some axis); the rest judged"
+        )
+    if not found or not found.get("frames"):
+        return ""
+    measured = np.asarray(measured, dtype=bool)
+    tol = axis_tolerances(tolerance)
+    largest = np.asarray(found["largest"], dtype=float)
+    far = ", ".join(
+        f"{AXES[k]} {axis_amount(int(k), largest[k])}"
+        for k in np.flatnonzero(measured & (largest > 0))
+    )
+    rest = np.asarray(found["rest_rms"], dtype=float)
+    rest_ok = bool(np.all(rest[measured] <= tol[measured]))
+    rms = ", ".join(  # below a nanometre or nanoradian: 0, not float noise
+        f"{AXES[k]} {axis_amount(int(k), rest[k] if rest[k] >= 1e-9 else 0.0)}"
+        for k in np.flatnonzero(measured)
+    )
+    return (
+        f"; {found['frames']} of {found['samples']} frames compared are outliers (beyond "
+        f"{OUTLIER_SIGMAS:g} robust SD and {OUTLIER_TOLERANCES:g}x the tolerance from the "
+        f"median error on some axis; up to {far} off it: a marker mis-detected?); the other "
+        f"{found['samples'] - found['frames']} frames: RMS {rms}, "
+        f"{'within' if rest_ok else 'beyond'} the tolerance; --exclude-outliers judges without "
+        "them"
+    )
+
+
 __all__ = [
     "MAX_UNCOMPARED_SHARE",
     "NAMED_PAUSES",
@@ -113,4 +195,8 @@ __all__ = [
     "uncompared_words",
     "pause_words",
     "removed_offset_words",
+    "OUTLIER_SIGMAS",
+    "OUTLIER_TOLERANCES",
+    "outliers",
+    "outlier_words",
 ]

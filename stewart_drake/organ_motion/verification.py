@@ -80,7 +80,7 @@ from .measured_span import (
     uncompared,
 )
 from .measured_verdict import judge, seconds
-from .verdict_notes import uncompared_words
+from .verdict_notes import outliers, uncompared_words
 
 #: The largest latency that passes when the clocks' relation is known, s, unless given.
 MAX_LATENCY_S = 0.5
@@ -148,6 +148,10 @@ class Verification:
             compare the whole recording}: what the verdict leaves out (its line says so).
         pauses: ((t of the file before the pause, s; its length, s), ...): the planned pauses
             the segments were judged across (``verify``'s ``pauses``), () without.
+        outliers: the frames compared that lie far off the rest
+            (:func:`~.verdict_notes.outliers`; their times on the reference's clock).
+        excluded: how many frames ``exclude_outliers`` left out (0: none).
+            ``outliers["indices"]``: theirs among the measured file's samples.
         judgement: the verdict (:class:`~.measured_verdict.Judgement`), set by :func:`verify`.
     """
 
@@ -169,6 +173,8 @@ class Verification:
     max_latency_s: float = MAX_LATENCY_S
     uncompared: dict = field(default_factory=dict)
     pauses: tuple = ()
+    outliers: dict = field(default_factory=dict)
+    excluded: int = 0
     judgement: Any = None
     learn_cycles: int = 0
     scale: float = 1.0
@@ -276,7 +282,9 @@ def verify(
     tolerance: tuple[float, float] = DEFAULT_TOLERANCE,
     max_gap_s: float = MAX_GAP_S,
     pauses: bool = False,
+    exclude_outliers: bool = False,
     _whole: bool = True,
+    _excluded: int = 0,
 ) -> Verification:
     """Judge a measured motion against the reference it was asked to follow (module docstring).
 
@@ -302,6 +310,10 @@ def verify(
         pauses: a longer step is a planned pause: the stretches either side are judged as
             segments of one run (each sample at its own time, nothing bridged), and the
             verdict line names the pauses; without, such a step is refused.
+        exclude_outliers: judge without the frames far off the rest
+            (:func:`~.verdict_notes.outliers`, found on the clock of the whole recording):
+            they are left out of the file and it is judged again, its line saying how many;
+            without, the line names them and the verdict of the rest.
     Returns:
         :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
@@ -402,10 +414,29 @@ def verify(
         uncompared=uncompared(t_rel + D, t_ref, whole, reference),
         pauses=paused,
     )
+    # Over every frame compared, the start-up's too: an outlier there moves the clock as much.
+    ver.outliers = outliers(t_ref, x_fid, x_d, seen, tolerance, frames.removes_offsets)
+    ver.outliers["indices"] = np.flatnonzero(keep)[ver.outliers.pop("mask")]
+    ver.excluded = _excluded
+    if exclude_outliers and ver.outliers["frames"]:
+        return _without_outliers(ver, reference, measured, clock_offset_s, options, _whole)
     ver.judgement = judge(ver, tolerance)
     if _whole and clock == "not known" and ver.judgement.verdict == "FAIL":
         return _best_part(ver, reference, measured, options)
     return ver
+
+
+def _without_outliers(ver, reference, measured, clock_offset_s, options, whole):
+    """``ver`` judged again without its outliers: those measured frames left out of the file,
+    on the same options, the count said on its line."""
+    from dataclasses import replace
+
+    drop = np.zeros(len(measured.t), dtype=bool)
+    drop[ver.outliers["indices"]] = True
+    kept = replace(measured, t=measured.t[~drop], poses=np.asarray(measured.poses)[~drop])
+    return verify(
+        reference, kept, clock_offset_s, _whole=whole, _excluded=int(drop.sum()), **options
+    )
 
 
 def _best_part(ver: Verification, reference: Reference, measured, options: dict):
