@@ -135,7 +135,7 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
     assert ends[0].startswith("stewart-drake robot: the reference ran to its end; "), ends[0]
     assert f"{name} received after the torque went off: held until the logs were saved" in ends[0]
     assert "torque off (confirmed by every servo); logs in" in ends[0]
-    assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5  # the lead-in and the hold
+    assert load_result(tmp_path / "robot_home_bus.npz").t[-1] > 0.5  # the lead-in and the hold
     assert torque == [0] * 6
     assert opened and all(bus._port is None for bus in opened)  # every bus closed
 
@@ -518,7 +518,7 @@ def test_a_session_whose_logs_could_not_be_written_does_not_exit_0(tmp_path, mon
         "the reference ran to its end; the logs could not be written: [Errno 28] No space"
         in (ends[0])
     )
-    assert f"{tmp_path / 'robot_home.npz'}" in ends[0] and torque == [0] * 6
+    assert f"{tmp_path / 'robot_home_bus.npz'}" in ends[0] and torque == [0] * 6
 
 
 @pytest.mark.parametrize("samples", [0, 1])
@@ -563,3 +563,13 @@ def test_the_emulator_outlives_a_signal_to_the_process_group():
     assert not child.is_alive()
     t, x = emu.truth()
     assert len(t) > 0 and x.shape[1] == 12
+
+
+def test_a_run_of_another_scenario_never_replaces_the_default_robots_files():
+    from stewart_drake.live.command import _scenario_suffix
+    from stewart_drake.run.scenario_io import ROBOT_SCENARIO
+
+    assert _scenario_suffix(ROBOT_SCENARIO) == ""
+    assert _scenario_suffix("phantom_bus") == "_phantom_bus"
+    assert _scenario_suffix("/lab/robots/my bot.v2.yaml") == "_my_bot_v2"
+    assert _scenario_suffix("bus.yml") == "_bus"

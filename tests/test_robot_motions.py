@@ -78,7 +78,7 @@ def test_the_robot_follows_a_library_breathing_motion_with_its_parameters(tmp_pa
     assert "control loop timing:" in out and "deadline misses" in out, out
     assert "stewart-drake robot: the reference ran to its end; torque off (confirmed" in out
 
-    log_path = tmp_path / "robot_breathing_encoders.csv"
+    log_path = tmp_path / "robot_breathing_bus_encoders.csv"
     log = read_table(
         log_path, "encoder log", ENCODER_LOG_COLUMNS, ENCODER_LOG_REMEDY, nan_ok=("t_path",)
     )
@@ -156,4 +156,4 @@ def test_a_motion_beyond_the_motors_is_refused_by_the_checks_before_the_torque_g
     assert code == 2 and not enables, err
     assert len(err) == 1 and err[0].startswith("stewart-drake robot: "), err
     assert "motor" in err[0] and "torque" in err[0], err[0]
-    assert not (tmp_path / "robot_breathing.npz").exists()
+    assert not (tmp_path / "robot_breathing_bus.npz").exists()

@@ -279,7 +279,7 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
     last = [line for line in said if "torque off" in line]
     assert len(last) == 1 and said[-1] == last[0] and len(said) == 3, err
     assert "interrupted by SIGTERM; torque off (confirmed by every servo); logs in" in last[0]
-    assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5
+    assert load_result(tmp_path / "robot_home_bus.npz").t[-1] > 0.5
 
 
 def test_teleop_on_the_robot_holds_where_it_rests_and_ends_with_the_torque_off(tmp_path):

@@ -393,7 +393,7 @@ def test_the_robot_command_drives_the_surrogate_and_says_its_relative_latency(tm
     said = [line for line in out.splitlines() if line.startswith("relative latency")]
     assert len(said) == 1 and re.search(r": [-+]\d+\.\d\d ms \(surrogate", said[0]), said
     assert "the platform's X against the reference's" in said[0]
-    header = (tmp_path / "robot_internal_encoders.csv").read_text().splitlines()[0]
+    header = (tmp_path / "robot_internal_bus_encoders.csv").read_text().splitlines()[0]
     assert header.endswith(",s [m],s_cmd [m],s_ref [m],s_delay [s]")
 
 

@@ -180,6 +180,7 @@ def _cmd_robot(args) -> int:
     stem = f"robot_{scenario.reference.label}" if args.motion else "robot"
     if args.follow is not None:
         stem = "robot_follow"
+    stem += _scenario_suffix(args.scenario)
     if not args.dry_run and args.calibrate is None:
         from ..calibration.join import encoder_log_path
 
@@ -246,6 +247,18 @@ def _robot_surrogate(args):
     from ..station.surrogate.carriage import load_surrogate
 
     return load_surrogate(args.surrogate)
+
+
+def _scenario_suffix(source) -> str:
+    """``""`` for the robot command's own scenario, else ``_<its name>`` (a file's stem): a run
+    of another robot never replaces the default robot's files (``robot breathing --scenario
+    phantom_bus`` writes ``robot_breathing_phantom_bus_encoders.csv``)."""
+    from ..run.scenario_io import ROBOT_SCENARIO
+
+    if str(source) == ROBOT_SCENARIO:
+        return ""
+    name = Path(str(source)).stem if str(source).endswith((".yaml", ".yml")) else str(source)
+    return "_" + "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
 
 
 def _robot_reference(args, scenario) -> None:
