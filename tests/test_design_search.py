@@ -417,3 +417,32 @@ def test_the_accuracy_asked_refuses_the_xm430s_floor_and_takes_the_pm42s():
     assert 1.3e-4 < xm.figures["floor_m"] < 2.0e-4  # 0.13 mm at home, more at the box's edge
     assert xm.margins["accuracy"] < -1.5 and not xm.feasible
     assert 0.5e-6 < pm.figures["floor_m"] < 2.0e-6 and pm.margins["accuracy"] > 0.95
+
+
+def test_the_cheapest_motor_search_skips_a_motor_the_robot_cannot_drive_by_torque(monkeypatch):
+    """The XL430-W250-T senses no current: `robot` refuses it, so the search never recommends
+    it, and says so; the next motor up is searched first."""
+    from types import SimpleNamespace
+
+    from stewart_drake.design import design_search
+    from stewart_drake.robot.motor_catalogue import MOTOR_CATALOGUE
+
+    assert "no Current Control Mode" in design_search.torque_refusal("XL430-W250-T")
+    assert design_search.torque_refusal("XM430-W350-T") == ""
+    assert design_search.torque_refusal("maxon-EC45flat-50W-GP42C-4.3") == ""  # not on the bus
+    searched = []
+
+    def search(task, motor, *args):
+        searched.append(motor)
+        return SimpleNamespace(motor=motor, feasible=len(searched) == 2)
+
+    monkeypatch.setattr(design_search, "search", search)
+    said = []
+    results = design_search.cheapest_motor(None, say=said.append)
+    cheapest = sorted(MOTOR_CATALOGUE, key=lambda m: MOTOR_CATALOGUE[m].price_usd)
+    assert cheapest[0] == "XL430-W250-T" and searched == cheapest[1:3]
+    assert [r.motor for r in results] == searched
+    assert said == [
+        "design: XL430-W250-T skipped: no Current Control Mode (no current sensing), so the "
+        "robot's controllers cannot send it a torque and `robot` refuses it"
+    ]

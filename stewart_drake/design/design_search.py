@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -392,6 +393,21 @@ def _seeded(seed: int) -> dict:
     return {"seed": generator}
 
 
+def torque_refusal(motor: str) -> str:
+    """Why ``robot`` could not drive catalogue motor ``motor`` by torque ("" if it can): a bus
+    servo without Current Control Mode (the XL430-W250-T senses no current, so the controllers'
+    torques cannot be sent to it; :func:`~stewart_drake.station.bus.servos.servo_spec`)."""
+    from ..station.bus.servos import SERVO_SPECS
+
+    spec = SERVO_SPECS.get(motor)
+    if spec is not None and spec.current_unit_A is None:
+        return (
+            "no Current Control Mode (no current sensing), so the robot's controllers cannot "
+            "send it a torque and `robot` refuses it"
+        )
+    return ""
+
+
 def cheapest_motor(
     task: TaskSamples,
     out_dir="results/design",
@@ -404,7 +420,8 @@ def cheapest_motor(
 ) -> list[SearchResult]:
     """Search the catalogue's motors from the cheapest up for a design that meets the task with
     the most reserve (objective ``torque_share``); stops at the first motor that meets it
-    (``say``: as :func:`search`'s).
+    (``say``: as :func:`search`'s). A motor the robot could not drive by torque is skipped and
+    said (:func:`torque_refusal`): a design is never recommended on a motor ``robot`` refuses.
 
     Returns:
         the searches run, cheapest motor first; the last is feasible unless no motor is (then
@@ -414,6 +431,11 @@ def cheapest_motor(
     """
     results = []
     for motor in sorted(MOTOR_CATALOGUE, key=lambda m: MOTOR_CATALOGUE[m].price_usd):
+        refused = torque_refusal(motor)
+        if refused:
+            line = f"design: {motor} skipped: {refused}"
+            say(line) if say else print(line, file=sys.stderr, flush=True)
+            continue
         result = search(
             task, motor, "torque_share", out_dir, seed, runner, popsize, maxiter, progress, say
         )
