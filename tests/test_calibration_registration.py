@@ -776,3 +776,23 @@ def test_the_emulated_tracker_follows_its_marker_in_its_own_frame():
     np.testing.assert_allclose(seen, SETUP.tracker_poses(plain), atol=1e-15)
     np.testing.assert_allclose(SETUP.registration().base_poses(seen), plain, atol=1e-14)
     assert len(times) == 100
+
+
+def test_fiducials_measured_in_a_mirrored_frame_are_refused_where_they_can_tell():
+    """Six fiducials off one plane, measured by a tracker whose x axis is reversed (a
+    left-handed frame): a reflection fits them to their noise, any rotation to centimetres,
+    and the fit is refused. As written (right-handed) they pass; on one plane the two cannot be
+    told apart (the plane turned over), and they pass too."""
+    rng = np.random.default_rng(7)
+    p_B = np.array([[0.1, 0, 0], [0, 0.1, 0], [-0.1, 0, 0], [0, -0.1, 0], [0, 0, 0.08],
+                    [0.05, 0.05, 0.12]])  # fmt: skip
+    R = RotationMatrix(RollPitchYaw(0.3, -0.2, 1.1)).matrix()
+    p_A = p_B @ R.T + [0.5, -0.2, 1.0] + rng.normal(0, 20e-6, p_B.shape)
+    X, _, rms = rg.fit_frame(p_A, p_B)
+    assert rms < 40e-6
+    mirrored = p_A * [-1.0, 1.0, 1.0]
+    with pytest.raises(InvalidConfigError, match="fit a mirrored frame") as err:
+        rg.fit_frame(mirrored, p_B)
+    assert "left-handed" in str(err.value)
+    flat = p_B[:4]
+    rg.fit_frame((flat @ R.T + [0.5, -0.2, 1.0]) * [-1.0, 1.0, 1.0], flat)

@@ -53,6 +53,10 @@ DEFAULT_MARKER_SIGMA = (20e-6, 5e-6)
 #: Points whose spread off their best line is below this fraction of their spread along it lie
 #: on one line for a fit: the rotation about that line is then barely known.
 MIN_LINE_SPREAD = 0.01
+#: Points that a mirrored frame (a reflection, det -1) fits with residuals under this share of
+#: the best rigid motion's were measured in a left-handed frame (or with an axis reversed): the
+#: fit is refused, since a rigid motion fitted to them would be wrong.
+MIRROR_SHARE = 0.5
 #: A fit whose RMS residual exceeds this, m, pairs the points wrongly (an order, a unit).
 MAX_FIT_RMS_M = 5e-3
 
@@ -95,8 +99,9 @@ def fit_frame(points_a, points_b, weights=None) -> tuple[RigidTransform, np.ndar
         the residuals' RMS, sqrt(mean |p_AQ - X_AB p_BQ|^2), m.
     Raises:
         InvalidConfigError: not (n, 3) each, of different lengths, not finite, fewer than
-            :data:`MIN_POINTS` points, weights not finite and > 0, or points_b on one line
-            (:func:`line_spread` below :data:`MIN_LINE_SPREAD`).
+            :data:`MIN_POINTS` points, weights not finite and > 0, points_b on one line
+            (:func:`line_spread` below :data:`MIN_LINE_SPREAD`), or points that a mirrored
+            frame fits far better (:data:`MIRROR_SHARE`: a left-handed tracker).
     Source: the weighted Kabsch fit; its covariance by linearizing each residual R^T e_i =
         e x p_BQ + v about the fit (the Gauss-Newton normal matrix).
     """
@@ -125,6 +130,7 @@ def fit_frame(points_a, points_b, weights=None) -> tuple[RigidTransform, np.ndar
     t = ca - R @ cb
     residual = a - (b @ R.T + t)
     rms = float(np.sqrt(np.mean(np.sum(residual**2, axis=1))))
+    _check_handedness(a - ca, b - cb, w, rms)
     # Each residual, in B: R^T (a_i - R b_i - t) = e_rot x b_i + e_trans = [-[b_i]x, I] e.
     A = np.concatenate([-_skew(b), np.broadcast_to(np.eye(3), (len(b), 3, 3))], axis=2)
     information = np.einsum("n,nki,nkj->ij", w, A, A)
@@ -132,6 +138,29 @@ def fit_frame(points_a, points_b, weights=None) -> tuple[RigidTransform, np.ndar
     if not known:
         cov *= float(np.sum(residual**2)) / max(3 * len(a) - 6, 1)
     return RigidTransform(RotationMatrix(R), t), 0.5 * (cov + cov.T), rms
+
+
+def _check_handedness(a, b, w, rms: float) -> None:
+    """Refuse centred points ``a`` (measured) and ``b`` (known) that a reflection fits far
+    better than the best rotation did (``rms``, m): a tracker's left-handed frame, or one of
+    its axes reversed, read as a right-handed one. Points on a plane fit a reflection and a
+    rotation alike (the plane turned over), and pass: only points off one plane can tell.
+
+    Raises:
+        InvalidConfigError: the mirrored fit's RMS under :data:`MIRROR_SHARE` of ``rms``.
+    """
+    U, _, Vt = np.linalg.svd((b * w[:, None]).T @ a)
+    M = (U @ Vt).T  # the best orthogonal map, a reflection when det < 0
+    if np.linalg.det(M) > 0:
+        return
+    mirrored = float(np.sqrt(np.mean(np.sum((a - b @ M.T) ** 2, axis=1))))
+    if mirrored < MIRROR_SHARE * rms:
+        raise InvalidConfigError(
+            f"the measured points fit a mirrored frame ({mirrored * 1e6:.3g} um RMS) far better "
+            f"than any rigid motion ({rms * 1e6:.3g} um RMS): the tracker's frame is "
+            "left-handed, or one of its axes reversed, as written; export it right-handed (or "
+            "negate that axis) and register again"
+        )
 
 
 def rigid_fit_rows(points_b, weights=None) -> np.ndarray:
