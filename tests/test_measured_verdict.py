@@ -563,7 +563,16 @@ def test_a_turned_motion_is_named_with_its_turn():
 
 
 @pytest.mark.parametrize(
-    "angle, named", [(0.8, False), (1.5, True), (55.0, True), (65.0, True), (90.0, True)]
+    "angle, named",
+    [
+        (0.8, False),
+        (1.5, True),
+        (55.0, True),
+        (65.0, True),
+        (90.0, True),
+        (135.0, True),
+        (170.0, True),
+    ],
 )
 def test_a_turn_is_named_from_1_deg_at_any_angle(angle, named):
     x = turned(X_D, angle, (0.0, 0.0, 1.0))
