@@ -343,12 +343,14 @@ def test_the_design_command_names_the_binding_constraint_of_a_task_nothing_meets
     assert code == 1
     said = [ln for ln in lines if ln.startswith("stewart-drake design: ")]
     bar = max(k for k, ln in enumerate(lines) if ln.startswith(f"design {REFERENCE_MOTOR}:"))
-    assert [lines.index(ln) > bar for ln in said] == [False, True, True, True, True], lines
+    assert [lines.index(ln) > bar for ln in said] == [False, False, True, True, True, True], lines
     assert said[0] == "stewart-drake design: evaluating the reference robot on the task"
-    assert said[1].startswith(f"stewart-drake design: {REFERENCE_MOTOR}: evaluating every margin")
-    assert said[2].startswith("stewart-drake design: what each design's loop survives")
-    assert said[3].startswith("stewart-drake design: writing the report, its plots")
-    assert "binding constraint reach" in said[4]  # the one line of the verdict, last
+    # How long the search may take, before its bar: popsize 2 x 8 variables x 2 generations.
+    assert said[1].startswith("stewart-drake design: the search: 32 candidates a motor (")
+    assert said[2].startswith(f"stewart-drake design: {REFERENCE_MOTOR}: evaluating every margin")
+    assert said[3].startswith("stewart-drake design: what each design's loop survives")
+    assert said[4].startswith("stewart-drake design: writing the report, its plots")
+    assert "binding constraint reach" in said[5]  # the one line of the verdict, last
     assert "Binding constraint: reach" in (tmp_path / "out" / "design.md").read_text()
 
 
@@ -446,3 +448,23 @@ def test_the_cheapest_motor_search_skips_a_motor_the_robot_cannot_drive_by_torqu
         "design: XL430-W250-T skipped: no Current Control Mode (no current sensing), so the "
         "robot's controllers cannot send it a torque and `robot` refuses it"
     ]
+
+
+def test_design_announces_how_long_its_searches_may_take():
+    from types import SimpleNamespace
+
+    from stewart_drake.design.design_search import SEARCH_VARIABLES
+    from stewart_drake.design.design_study import _length_words
+    from stewart_drake.robot.motor_catalogue import MOTOR_CATALOGUE
+
+    n = 8 * len(SEARCH_VARIABLES) * 31
+    others = len(MOTOR_CATALOGUE) - 1  # the XL430-W250-T is never searched
+    line = _length_words(0.6, 8, 30, True, "XM430-W350-T", SimpleNamespace(n_workers=2))
+    one = n * 0.6 / 2 / 60
+    assert line == (
+        f"the search: {n} candidates a motor (XM430-W350-T first, then up to {others} more from "
+        f"the cheapest up), 0.6 s a candidate at most on 2 worker(s): up to {one:.0f} min a "
+        f"motor, {(1 + others) * one:.0f} min in all (a bar per motor)"
+    )
+    alone = _length_words(0.6, 8, 30, False, "XM430-W350-T", None)
+    assert "then up to" not in alone and f"{n * 0.6 / 60:.0f} min in all" in alone

@@ -13,6 +13,7 @@ report and as the return value's ``binding``.
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -70,6 +71,27 @@ class DesignOutcome:
         }
 
 
+def _length_words(each_s: float, popsize: int, maxiter: int, cheapest: bool, motor, runner):
+    """The line announcing how long the searches may take: the candidates of one motor's
+    search (scipy's differential evolution: ``popsize`` x the variables, each of ``maxiter`` + 1
+    generations), how many motors at most (the chosen, then the catalogue from the cheapest up
+    while none meets the task), at ``each_s`` a candidate (the reference's full evaluation, an
+    upper bound: a candidate stops at its first missed margin) over the runner's workers."""
+    from ..robot.motor_catalogue import MOTOR_CATALOGUE
+    from .design_search import SEARCH_VARIABLES, torque_refusal
+
+    candidates = popsize * len(SEARCH_VARIABLES) * (maxiter + 1)
+    motors = 1 + (sum(1 for m in MOTOR_CATALOGUE if not torque_refusal(m)) if cheapest else 0)
+    workers = max(1, int(getattr(runner, "n_workers", 1) or 1))
+    one = candidates * each_s / workers
+    return (
+        f"the search: {candidates} candidates a motor ({motor} first"
+        + (f", then up to {motors - 1} more from the cheapest up" if cheapest else "")
+        + f"), {each_s:.2g} s a candidate at most on {workers} worker(s): up to "
+        f"{one / 60:.0f} min a motor, {motors * one / 60:.0f} min in all (a bar per motor)"
+    )
+
+
 def run_design(
     requirements_path,
     out_dir="results/design",
@@ -118,7 +140,9 @@ def run_design(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     say("evaluating the reference robot on the task")
+    started = time.perf_counter()
     reference = evaluate(reference_design(), task, lazy=False)
+    say(_length_words(time.perf_counter() - started, popsize, maxiter, cheapest, motor, runner))
     folder = out / "search"
     searches: list[SearchResult] = [
         search(task, motor, objective, folder, seed, runner, popsize, maxiter, progress, say)
