@@ -136,11 +136,12 @@ def check_length(reference: Reference, t: np.ndarray) -> None:
 
 
 def uncompared(t_all, t_ref, whole: bool, reference: Reference | None = None) -> dict:
-    """:attr:`Verification.uncompared` of the recording's times ``t_all`` on the reference's
-    clock, of which ``t_ref`` are compared; ``whole``: the clock known or searched among the
-    shifts that compare the whole recording (:func:`search_range`); ``reference``: the motion,
-    whose length (from its start to its ``end_time``; none for one that repeats or has no end)
-    gives ``longer_s``, by how much the recording outlasts it: that much no clock can compare."""
+    """:attr:`~.verification.Verification.uncompared` of the recording's times ``t_all`` on the
+    reference's clock, of which ``t_ref`` are compared; ``whole``: the clock known or searched
+    among the shifts that compare the whole recording (:func:`search_range`); ``reference``: the
+    motion, whose length (from its start to its ``end_time``; none for one that repeats or has
+    no end) gives ``longer_s``, by how much the recording outlasts it: that much no clock can
+    compare."""
     before, after = t_all < t_ref[0], t_all > t_ref[-1]
     span = float(t_all[-1] - t_all[0])
     end = getattr(reference, "end_time", None)
