@@ -113,23 +113,21 @@ def removed_offset_words(ver, tolerance: tuple[float, float]) -> str:
     )
 
 
-def outliers(
-    t: np.ndarray, x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offsets=False
-) -> dict:
+def outliers(x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offsets=False) -> dict:
     """The frames far off the rest (a marker mis-detected, a reflection taken for it): those
     whose error x - x_d on some measured axis lies beyond :data:`OUTLIER_SIGMAS` robust standard
     deviations of that axis's error from its median and beyond :data:`OUTLIER_TOLERANCES` times
     its tolerance.
 
     Args:
-        t: (n,) the frames' times, s. x, x_d: (n, 6) measured and reference, rad and m (NaN
-            where not measured). measured: (6,) bool. tolerance: (m, rad). removes_offsets:
+        x, x_d: (n, 6) the frames measured and the reference's, rad and m (NaN where not
+            measured). measured: (6,) bool. tolerance: (m, rad). removes_offsets:
             the frames remove each axis's mean error (``--frame axes``): the other frames'
             RMS is then about their own mean, as a verdict without the outliers takes it.
     Returns:
-        {"frames": how many, "samples": n, "times": (k,) their times, "bound": (6,) each
-        axis's bound (NaN not measured), "largest": (6,) the largest |error - median| among
-        them, "rest_rms": (6,) the RMS error of the other frames, "mask": (n,) which frames}.
+        {"frames": how many, "samples": n, "largest": (6,) the largest |error - median| among
+        them, "rest_rms": (6,) the RMS error of the other frames (NaN not measured), "mask":
+        (n,) which frames}.
     """
     measured = np.asarray(measured, dtype=bool)
     e = np.where(measured, np.asarray(x, dtype=float) - np.asarray(x_d, dtype=float), 0.0)
@@ -143,11 +141,7 @@ def outliers(
     return {
         "frames": int(flagged.sum()),
         "samples": int(len(e)),
-        "times": np.asarray(t, dtype=float)[flagged],
-        "bound": np.where(measured, bound, np.nan),
-        "largest": np.where(
-            measured & flagged.any(), centred[flagged].max(axis=0, initial=0.0), 0.0
-        ),
+        "largest": np.where(measured, centred[flagged].max(axis=0, initial=0.0), 0.0),
         "rest_rms": np.where(measured, np.sqrt(np.mean(rest**2, axis=0)), np.nan),
         "mask": flagged,
     }

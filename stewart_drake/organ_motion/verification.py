@@ -149,7 +149,7 @@ class Verification:
         pauses: ((t of the file before the pause, s; its length, s), ...): the planned pauses
             the segments were judged across (``verify``'s ``pauses``), () without.
         outliers: the frames compared that lie far off the rest
-            (:func:`~.verdict_notes.outliers`; their times on the reference's clock).
+            (:func:`~.verdict_notes.outliers`).
         excluded: how many frames ``exclude_outliers`` left out (0: none).
             ``outliers["indices"]``: theirs among the measured file's samples.
         judgement: the verdict (:class:`~.measured_verdict.Judgement`), set by :func:`verify`.
@@ -393,6 +393,9 @@ def verify(
         x_start[:, :3] = np.nan
     offset = 0.0 if clock_offset_s is None else float(clock_offset_s)
     latency = (offset + t_first) - D  # offset - d, without d's large digits
+    # Over every frame compared, the start-up's too: an outlier there moves the clock as much.
+    far = outliers(x_fid, x_d, seen, tolerance, frames.removes_offsets)
+    far["indices"] = np.flatnonzero(keep)[far.pop("mask")]
     ver = Verification(
         name=getattr(reference, "name", "reference"),
         reference=reference,
@@ -413,11 +416,9 @@ def verify(
         max_latency_s=max_latency_s,
         uncompared=uncompared(t_rel + D, t_ref, whole, reference),
         pauses=paused,
+        outliers=far,
+        excluded=_excluded,
     )
-    # Over every frame compared, the start-up's too: an outlier there moves the clock as much.
-    ver.outliers = outliers(t_ref, x_fid, x_d, seen, tolerance, frames.removes_offsets)
-    ver.outliers["indices"] = np.flatnonzero(keep)[ver.outliers.pop("mask")]
-    ver.excluded = _excluded
     if exclude_outliers and ver.outliers["frames"]:
         return _without_outliers(ver, reference, measured, clock_offset_s, options, _whole)
     ver.judgement = judge(ver, tolerance)
