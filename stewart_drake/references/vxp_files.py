@@ -131,6 +131,7 @@ def vxp_table(path: Path, text: str) -> tuple[list, list, str]:
     v = layout.index("validflag") if "validflag" in layout else None
     need = max(a, t, -1 if v is None else v) + 1
     rows: list = []
+    stamps: list = []  # ms, as read: the rate's check takes them so
     dropped: dict[int, int] = {}
     for number, line in enumerate(lines[first:], start=first + 1):
         if not line.strip():
@@ -152,13 +153,14 @@ def vxp_table(path: Path, text: str) -> tuple[list, list, str]:
             dropped[flag] = dropped.get(flag, 0) + 1
             continue
         rows.append([number, repr(stamp), repr(amplitude * scale)])
+        stamps.append(stamp)
     if not rows:
         raise InvalidConfigError(f"{path}: no valid sample (every validflag below 0)")
     words = [
         f"{VXP_LAYOUT} (version {fields.get('version', 'not given')}; Data_layout "
         f"{','.join(layout)}; Scale_factor {scale:g}: amplitude x {scale:g} mm)"
     ]
-    words += _rate_words(path, rows, rate)
+    words += _rate_words(path, stamps, rate)
     if dropped:
         words.append(
             f"{sum(dropped.values())} invalid samples dropped ("
@@ -171,14 +173,14 @@ def vxp_table(path: Path, text: str) -> tuple[list, list, str]:
     return ["t [ms]", "amplitude [mm]"], rows, ", ".join(words)
 
 
-def _rate_words(path: Path, rows: list, rate: float) -> list:
-    """The layout's words on the header's sample rate against the timestamps' ([] when they
-    agree to :data:`RATE_SLACK`).
+def _rate_words(path: Path, stamps: list, rate: float) -> list:
+    """The layout's words on the header's sample rate against the timestamps' (``stamps``, ms;
+    the rate's words alone when they agree to :data:`RATE_SLACK`).
 
     Raises:
         InvalidConfigError: further apart than :data:`MAX_RATE_RATIO`.
     """
-    stamps = sorted(float(r[1]) for r in rows)
+    stamps = sorted(stamps)
     steps = sorted(b - a for a, b in zip(stamps, stamps[1:]) if b > a)
     if not steps:
         return []
