@@ -276,7 +276,11 @@ def test_the_cycles_are_the_samples_from_each_start_up_to_the_next():
         assert cycles["peak_translation_m"][n] == pytest.approx(
             math.hypot(1e-6 * j, 2e-6), rel=1e-6
         )
+    per_axis = cycles.pop("rms")
+    for n, (i, j) in enumerate(kept.values()):  # and each axis's own, X here
+        assert per_axis[n][3] == pytest.approx(math.sqrt(np.mean(e[i:j, 3] ** 2)), rel=1e-6)
     assert all(type(v) is float for values in cycles.values() for v in values)
+    assert all(type(v) is float for row in per_axis for v in row)
     short = fd.fidelity(t, x_d + e, x_d, cycle_starts=[3.0, 3.525])["cycles"]
     assert short["starts"] == []  # 2.5 samples after the last
 
@@ -551,3 +555,40 @@ def test_the_verdict_judges_only_the_rotations_that_were_measured():
     ok, line = fd.verdict(fid, (1e-4, 1e-3))
     assert ok and "(largest: Y 30 um, theta 500 urad)" in line
     assert not fd.verdict(fid, (1e-4, 4e-4))[0]
+
+
+def test_the_gamma_index_of_each_sample_is_its_distance_over_the_criterion():
+    """A still reference missed by 0.25 mm at a 0.5 mm criterion: gamma 0.5 at every sample
+    (no time shift brings a still reference nearer); by 0.6 mm, 1.2. A ramp 4 samples early
+    within a 5-sample time criterion: gamma 0.8 wherever the reference goes on 4 samples more,
+    the gamma pass rate the share at most 1 (:func:`gamma_pass_rate` agrees)."""
+    t = np.arange(100) * 0.01
+    still = np.zeros((100, 3))
+    for miss, gamma in ((2.5e-4, 0.5), (6e-4, 1.2)):
+        off = still.copy()
+        off[:, 0] = miss
+        np.testing.assert_allclose(fd.gamma_index(t, off, still, 5e-4, 0.1), gamma, rtol=1e-12)
+    ramp = np.column_stack([0.1 * t, 0 * t, 0 * t])  # 1 mm a sample
+    early = np.column_stack([0.1 * (t + 0.04), 0 * t, 0 * t])
+    g = fd.gamma_index(t, early, ramp, 1e-6, 0.05)
+    np.testing.assert_allclose(g[:96], 0.8, rtol=1e-9)
+    assert np.all(g[96:] > 1.0)
+    assert fd.gamma_pass_rate(t, early, ramp, 1e-6, 0.05) == np.mean(g <= 1.0) == 0.96
+
+
+def test_the_rms_error_of_each_cycle_per_axis():
+    """An error of a sin(2 pi t / 4 s) on X and a constant c on theta, cycles of 4 s: per cycle
+    per axis the RMS is a / sqrt(2) on X, c on theta and 0 elsewhere, whatever the cycle."""
+    t = np.arange(0.0, 16.0, 0.01)
+    x_d = np.tile(X_HOME, (t.size, 1))
+    x = x_d.copy()
+    a, c = 3e-4, 2e-4
+    x[:, 3] += a * np.sin(2 * np.pi * t / 4.0)
+    x[:, 1] += c
+    cyc = fd.fidelity(t, x, x_d, cycle_starts=[0.0, 4.0, 8.0, 12.0])["cycles"]
+    assert cyc["starts"] == [0.0, 4.0, 8.0]
+    rms = np.array(cyc["rms"])
+    assert rms.shape == (3, 6)
+    np.testing.assert_allclose(rms[:, 3], a / math.sqrt(2), rtol=1e-9)
+    np.testing.assert_allclose(rms[:, 1], c, rtol=1e-9)
+    np.testing.assert_allclose(rms[:, [0, 2, 4, 5]], 0.0, atol=1e-15)

@@ -101,8 +101,18 @@ def test_the_judgement_as_json_values():
         "axes": {"X": {"rms": 1.0}},
         "latency_judged": True,
         "sensitivity": {"s": 1},
+        "action_level": None,
+        "action": {},
     }
     assert Judgement(True, "", "").causes == [] and Judgement(True, "", "").axes == {}
+    # The verdict's word: passed with an axis beyond the action level is ACTION, whose JSON
+    # gives the level and the axis; not passed it stays FAIL or CANNOT JUDGE.
+    action = Judgement(True, "ACTION: ...", "m.csv", action_level=(7e-5, 1e-3), action={"X": 8e-5})
+    assert action.verdict == "ACTION" and action.as_dict()["action"] == {"X": 8e-5}
+    assert action.as_dict()["action_level"] == [7e-5, 1e-3]
+    assert Judgement(True, "", "", action_level=(7e-5, 1e-3)).verdict == "PASS"
+    assert Judgement(False, "", "", action={"X": 8e-5}).verdict == "FAIL"
+    assert Judgement(False, "", "", cannot_judge="x", action={"X": 8e-5}).verdict == "CANNOT JUDGE"
 
 
 # -- the figures -----------------------------------------------------------------------------------
@@ -990,3 +1000,42 @@ def test_the_sensitivity_counts_an_axis_by_its_own_thresholds():
             assert (s["tilt_about"], s["tilt_axis"]) == ("Z", "X")
         else:
             assert math.isnan(s["tilt_rad"]) and s["tilt_axis"] == ""
+
+
+def test_each_axis_is_graded_at_the_edges_of_its_tolerance_and_action_level():
+    """An axis's RMS error at the tolerance exactly PASSes, a hair beyond FAILs; at the action
+    level exactly it PASSes, a hair beyond is ACTION; rotations against the angle, translations
+    against the length; an axis not measured is not graded."""
+    from stewart_drake.organ_motion.measured_verdict import axis_levels
+
+    tol, act = (1e-4, 2e-3), (7e-5, 1e-3)
+    measured = np.array([False, True, True, True, True, False])
+    rms = np.array([9.0, 1e-3, 2e-3, 7e-5, 1e-4, 9.0])
+    assert axis_levels(rms, measured, tol, act) == {
+        "theta": "PASS",
+        "psi": "ACTION",
+        "X": "PASS",
+        "Y": "ACTION",
+    }
+    hair = rms * (1 + 1e-9)
+    assert axis_levels(hair, measured, tol, act) == {
+        "theta": "ACTION",
+        "psi": "FAIL",
+        "X": "ACTION",
+        "Y": "FAIL",
+    }
+    assert axis_levels(hair, measured, tol) == dict.fromkeys(["theta", "X"], "PASS") | {
+        "psi": "FAIL",
+        "Y": "FAIL",
+    }
+    assert axis_levels(np.full(6, np.nan), measured, tol, act)["X"] == "FAIL"  # NaN never passes
+
+
+def test_the_exit_status_is_the_worst_verdicts():
+    """0 for PASS alone; ACTION 4; CANNOT JUDGE 3 over ACTION; FAIL 2 over everything."""
+    from stewart_drake.live.verify_command import exit_status
+
+    assert exit_status(["PASS", "PASS"]) == 0
+    assert exit_status(["PASS", "ACTION"]) == 4
+    assert exit_status(["ACTION", "CANNOT JUDGE", "PASS"]) == 3
+    assert exit_status(["ACTION", "CANNOT JUDGE", "FAIL"]) == 2

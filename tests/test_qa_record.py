@@ -71,8 +71,9 @@ def page_texts(pdf: Path) -> list[str]:
 
     raw = pdf.read_bytes()
     texts = []
-    # reportlab writes each stream ASCII85 then Flate encoded; a text operator's string is in
-    # parentheses before Tj.
+    # reportlab writes each stream ASCII85 then Flate encoded, one content stream a page (an
+    # image's stream holds no text operator); a text operator's string is in parentheses
+    # before Tj.
     for m in re.finditer(rb"stream\r?\n(.*?)endstream", raw, re.S):
         body = m.group(1).strip()
         try:
@@ -81,8 +82,10 @@ def page_texts(pdf: Path) -> list[str]:
             text = zlib.decompress(body).decode("latin-1")
         except (ValueError, zlib.error):
             continue
-        texts.append(" ".join(re.findall(r"\((.*?)\) Tj", text)))
-    return ["\n".join(texts)]
+        words = re.findall(r"\((.*?)\) Tj", text)
+        if words:
+            texts.append(" ".join(words))
+    return texts
 
 
 def test_a_pass_is_recorded_with_everything_a_physicist_signs(tmp_path, exports):
@@ -106,24 +109,75 @@ def test_a_pass_is_recorded_with_everything_a_physicist_signs(tmp_path, exports)
     assert data["tolerance_mm"] == pytest.approx(0.2)
     assert data["rms_phi_deg"] is None and data["level_phi"] is None  # not measured
     texts = page_texts(pdfs[0])
+    assert len(texts) == 3, texts
     whole = "\n".join(texts)
     for words in ("Motion phantom QA record", "PASS", "SD-0042", "A. Physicist", "Signature"):
-        assert words in whole, words
-    assert measured["sha256"][:16] in whole.replace("\n", "").replace(" ", "")
-    if len(texts) > 1:
-        assert "The verification's plots" in texts[1]
+        assert words in texts[0], words
+    assert measured["sha256"][:16] in texts[1].replace("\n", "").replace(" ", "")
+    assert "The plots: PASS, each axis against its own tolerance" in texts[2]
+    for n in (1, 2, 3):
+        assert f"/ PASS / page {n} of 3" in texts[n - 1]
+    # The reference with its parameter, the device and its independence, the cycles judged, and
+    # no phantom the run did not name (the default scenario is not this tracker's phantom).
+    assert data["reference_motion"] == "breathing --param tilt=2deg"
+    assert "breathing --param tilt=2deg measured in right.csv" in texts[0]
+    assert data["independent"] is True and "external tracker" in data["measuring_device"]
+    assert data["scenario"] == "" and "not named by the run" in texts[0]
+    assert "phantom_hardware" not in whole
+    # 30 s of a 4 s breathing judged from t = 4 s: cycles 4-8 ... 28-32, the last cut at the
+    # window's end (31.93 s: within 2 % of a cycle, it counts), counted from the report's window.
+    w0, w1 = report["fidelity"]["window_s"]
+    assert data["cycles_judged"] == int(np.floor((w1 - 4.0) / 4.0 + 0.02)) == 7
+    # One unit per column: the translation table's cells are the JSON's mm values.
+    assert "RMS error [mm]" in texts[0] and "um" not in texts[0].split("Latency")[0]
+    for axis in "xyz":
+        assert f"{data[f'rms_{axis}_mm']:.4f}" in texts[0]
+        assert f"{data[f'peak_{axis}_mm']:.4f}" in texts[0]
+    assert "Rotation" not in texts[0].split("Latency")[0]  # no rotation measured: no table
 
 
-def test_an_action_level_and_a_fail_are_recorded_as_such(tmp_path, exports):
-    code, _, jsons = record(tmp_path, exports[0], "--action-level", "0.05mm,0.05deg")
+def test_an_action_level_and_a_fail_are_recorded_as_such(tmp_path, exports, capsys):
+    code, pdfs, jsons = record(tmp_path, exports[0], "--action-level", "0.05mm,0.05deg")
     data = json.loads(jsons[0].read_text())
-    # The tracker's noise, 69 um per axis, is within 0.2 mm but beyond 0.05 mm: ACTION, exit 0.
-    assert code == 0 and data["verdict"] == "ACTION"
+    out = capsys.readouterr().out
+    # The tracker's noise, 69 um per axis, is within 0.2 mm but beyond 0.05 mm: ACTION
+    # everywhere: the terminal's line, the exit status (4), the report's JSON, the record's
+    # JSON, its verdict's word and every page's foot.
+    assert code == 4 and data["verdict"] == "ACTION" and data["passed"] is True
+    assert out.startswith("ACTION: right.csv") and "beyond the action level 50 um" in out
+    report = json.loads(next((tmp_path / "out").glob("verify_*.json")).read_text())
+    assert report["verdict"]["verdict"] == "ACTION" and report["verdict"]["line"] == data["line"]
+    assert data["line"].startswith("ACTION: ")
     assert data["level_x"] == "ACTION" and data["action_mm"] == pytest.approx(0.05)
+    texts = page_texts(pdfs[0])
+    assert "\nACTION\n" in f"\n{texts[0]}\n".replace(" ", "\n")
+    for n, text in enumerate(texts, 1):
+        assert f"/ ACTION / page {n} of {len(texts)}" in text
+    assert "PASS" not in texts[0].split("Translation")[0]
     code, _, jsons = record(tmp_path / "f", exports[1])
     data = json.loads(jsons[0].read_text())
     assert code == 2 and data["verdict"] == "FAIL" and data["causes"]
     assert data["level_x"] == "FAIL"
+
+
+def test_the_action_level_grades_the_verdict_at_its_edge_without_a_record(tmp_path, exports):
+    """``--action-level`` is the verdict's, with or without ``--record``: an action level just
+    above the largest axis's RMS error PASSes (exit 0), one just below is ACTION (exit 4) on
+    that axis alone; the RMS errors read from a first report."""
+    out = tmp_path / "first"
+    base = ["verify", "breathing", *PARAMS, "--measured", str(exports[0])]
+    base += ["--measured-columns", MARKER_COLUMNS, "--tolerance", "0.2mm,0.1deg"]
+    assert main([*base, "--out", str(out)]) == 0
+    rms = json.loads(next(out.glob("verify_*.json")).read_text())["fidelity"]["rms"][3:]
+    k = int(np.argmax(rms))
+    for factor, code, level in ((1.001, 0, "PASS"), (0.999, 4, "ACTION")):
+        folder = tmp_path / f"at{factor}"
+        action = f"{max(rms) * factor * 1e3:.6f}mm,0.1deg"
+        assert main([*base, "--out", str(folder), "--action-level", action]) == code
+        verdict = json.loads(next(folder.glob("verify_*.json")).read_text())["verdict"]
+        assert verdict["verdict"] == level
+        assert list(verdict["action"]) == ([] if level == "PASS" else ["XYZ"[k]])
+        assert not (folder / "records").exists()
 
 
 def test_records_are_never_overwritten(tmp_path, exports):
@@ -151,6 +205,11 @@ def test_the_qatrack_upload_procedure_reads_the_record(tmp_path, exports):
     "options, words",
     [
         (["--operator", "X"], "--operator is for the QA record: add --record"),
+        (
+            ["--action-level", "0.3mm,0.1deg"],
+            "--action-level: its length must be above 0 and at most the --tolerance's 0.2 mm, "
+            "got 0.3 mm",
+        ),
         (
             ["--record", "--action-level", "0.3mm,0.1deg"],
             "--action-level: its length must be above 0 and at most the --tolerance's 0.2 mm, "
@@ -243,3 +302,40 @@ def test_a_records_folder_that_cannot_take_the_record_is_refused_before_any_work
     assert err.strip().splitlines()[-1].startswith("stewart-drake verify: cannot write to "), err
     assert "records" in err and "choose another output with --out" in err
     assert "PASS" not in out and not list((tmp_path / "out").glob("verify_*"))
+
+
+def test_an_encoder_logs_record_names_its_robot_and_says_it_is_not_independent(tmp_path):
+    """The robot's own encoder log (the shipped example): its record names the robot whose log
+    it is (the --scenario whose forward kinematics read it) and says, in the JSON and on the
+    first page, that the measurement is not independent of the robot."""
+    assert main(["examples", str(tmp_path / "ex")]) == 0
+    out = tmp_path / "out"
+    code = main(
+        ["verify", "breathing", *PARAMS, "--measured", str(tmp_path / "ex" / "run_encoders.csv")]
+        + ["--out", str(out), "--record"]
+    )
+    assert code == 0
+    data = json.loads(next((out / "records").glob("*.json")).read_text())
+    assert data["independent"] is False and "not independent" in data["measuring_device"]
+    assert data["scenario"].startswith("phantom_hardware (the robot whose encoder log this is")
+    first = page_texts(next((out / "records").glob("*.pdf")))[0]
+    assert "Measured by the robot's own encoders: not independent of the robot" in first
+    assert "Rotation" in first and "RMS error [deg]" in first  # six axes: both tables
+
+
+def test_the_reference_is_recorded_as_the_command_line_chose_it():
+    """The motion with every --param and --add given, and the trace options that differ from
+    their defaults, in the order given; nothing else."""
+    from stewart_drake.cli.registry import build_parser
+    from stewart_drake.live.verify_command import reference_words
+
+    parser = build_parser()
+    args = parser.parse_args(
+        ["verify", "breathing", "--param", "tilt=2deg", "--add", "heartbeat", "--measured", "m"]
+    )
+    assert reference_words(args) == "breathing --param tilt=2deg --add heartbeat"
+    args = parser.parse_args(["verify", "trace.txt", "--lowpass-hz", "2", "--measured", "m"])
+    assert reference_words(args) == "trace.txt --lowpass-hz 2.0"
+    assert reference_words(parser.parse_args(["verify", "trace.txt", "--measured", "m"])) == (
+        "trace.txt"
+    )

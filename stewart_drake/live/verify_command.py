@@ -165,8 +165,9 @@ def _add_record_arguments(vp) -> None:
         "--action-level",
         default=None,
         metavar="LENGTH,ANGLE",
-        help="with --record: RMS errors per axis beyond which a result within --tolerance is "
-        "ACTION (TG-142's action level), e.g. 0.07mm,0.07deg (default: none)",
+        help="RMS errors per axis beyond which a result within --tolerance is ACTION (TG-142's "
+        "action level: within tolerance, to be looked at before it fails; exit status 4), "
+        "e.g. 0.07mm,0.07deg (default: none)",
     )
     vp.add_argument("--operator", default="", help="with --record: who ran the QA")
     vp.add_argument("--phantom-serial", default="", help="with --record: the phantom's serial")
@@ -194,7 +195,8 @@ def _check_frame(text: str) -> None:
 def cmd_verify(args) -> int:
     """``stewart-drake verify``: read the reference and each measured file, judge each, write
     its report and print its verdict and figures (a table side by side for several); 0 when
-    every verdict passes, 2 when any FAILs, else 3 when any cannot judge (:func:`exit_status`).
+    every verdict passes, 2 when any FAILs, else 3 when any cannot judge, else 4 when any is
+    ACTION (:func:`exit_status`).
     With ``--save-registration``: fit the tracker's frames to
     the one measured run of a known motion and write them, 0, no verdict.
 
@@ -214,6 +216,7 @@ def cmd_verify(args) -> int:
     from ..run.plan import robot_geometry
 
     tolerance = parse_tolerance(args.tolerance)
+    action_level = _action_level(args, tolerance)
     context = _record_context(args, tolerance)
     _check_frame(args.frame)
     if args.registration and args.frame != "axes":
@@ -283,6 +286,7 @@ def cmd_verify(args) -> int:
             max_gap_s=args.measured_max_gap,
             pauses=args.measured_pauses,
             exclude_outliers=args.exclude_outliers,
+            action_level=action_level,
         )
         replaced = _earlier_verdict(out / f"{stem}.json")
         md, png, js = write_verification(ver, out, tolerance, stem)
@@ -300,8 +304,12 @@ def cmd_verify(args) -> int:
                 ver,
                 out,
                 tolerance,
-                replace(context, inputs=tuple(inputs), identities=identities),
-                png,
+                replace(
+                    context,
+                    inputs=tuple(inputs),
+                    identities=identities,
+                    scenario=_phantom_words(args, m.kind),
+                ),
                 stem,
             )
             print(f"wrote the QA record {pdf} and {record}")
@@ -311,15 +319,16 @@ def cmd_verify(args) -> int:
     return exit_status([ver.judgement.verdict for ver in results])
 
 
-#: ``verify``'s exit status of each verdict; of several, the worst (FAIL before CANNOT JUDGE).
-EXIT_STATUS = {"PASS": 0, "FAIL": 2, "CANNOT JUDGE": 3}
+#: ``verify``'s exit status of each verdict; of several, the worst (FAIL, then CANNOT JUDGE,
+#: then ACTION).
+EXIT_STATUS = {"PASS": 0, "FAIL": 2, "CANNOT JUDGE": 3, "ACTION": 4}
 
 
 def exit_status(verdicts) -> int:
     """The exit status of ``verify``'s verdicts (:data:`EXIT_STATUS`): 2 when any FAILs,
-    else 3 when any cannot judge, else 0."""
+    else 3 when any cannot judge, else 4 when any is ACTION, else 0."""
     verdicts = list(verdicts)
-    for worst in ("FAIL", "CANNOT JUDGE"):
+    for worst in ("FAIL", "CANNOT JUDGE", "ACTION"):
         if worst in verdicts:
             return EXIT_STATUS[worst]
     return 0
@@ -332,7 +341,6 @@ def record_options(args) -> list[str]:
         option
         for option, value in (
             ("--record", args.record),
-            ("--action-level", args.action_level),
             ("--operator", args.operator),
             ("--phantom-serial", args.phantom_serial),
             ("--notes", args.notes),
@@ -341,17 +349,38 @@ def record_options(args) -> list[str]:
     ]
 
 
+def _action_level(args, tolerance):
+    """``--action-level`` as (m, rad), checked within the tolerance before any work, or None.
+
+    Raises:
+        InvalidConfigError: not LENGTH,ANGLE; beyond the tolerance or not above 0; given with
+            ``--save-registration`` (no verdict).
+    """
+    from ..base.errors import InvalidConfigError
+    from ..organ_motion.fidelity import parse_tolerance
+    from ..organ_motion.measured_verdict import check_action_level
+
+    if args.action_level is None:
+        return None
+    if args.save_registration:
+        raise InvalidConfigError(
+            "--save-registration gives no verdict to grade: leave --action-level out"
+        )
+    action = parse_tolerance(args.action_level, "--action-level")
+    check_action_level(action, tolerance)
+    return action
+
+
 def _record_context(args, tolerance):
     """The :class:`~stewart_drake.organ_motion.qa_record.RecordContext` of ``--record`` and its
     options, checked before any work (reportlab importable), or None without ``--record``.
 
     Raises:
-        InvalidConfigError: a record's option without ``--record``; a bad ``--action-level``
-            or text (:meth:`~stewart_drake.organ_motion.qa_record.RecordContext.check`).
+        InvalidConfigError: a record's option without ``--record``; a text too long
+            (:meth:`~stewart_drake.organ_motion.qa_record.RecordContext.check`).
         MissingExtraError: reportlab is not installed.
     """
     from ..base.errors import InvalidConfigError
-    from ..organ_motion.fidelity import parse_tolerance
     from ..organ_motion.qa_record import RecordContext, _reportlab
 
     given = record_options(args)
@@ -366,19 +395,48 @@ def _record_context(args, tolerance):
     from ..execution.options import check_writable
 
     check_writable(Path(args.out) / "records", "--out")  # where the record goes, before any work
-    action = (
-        None if args.action_level is None else parse_tolerance(args.action_level, "--action-level")
-    )
     context = RecordContext(
         operator=args.operator,
         phantom_serial=args.phantom_serial,
         notes=args.notes,
-        scenario=str(args.scenario or ""),
-        action_level=action,
+        scenario=str(args.scenario),
+        reference=reference_words(args),
     )
-    context.check(tolerance)
+    context.check()
     _reportlab()
     return context
+
+
+def _phantom_words(args, kind: str) -> str:
+    """The phantom a record names: for the robot's encoder log the robot that wrote it (its
+    ``--scenario``, whose forward kinematics read it); for a tracker's file the ``--scenario``
+    given, or "" when the default stands (it names no phantom: ``--phantom-serial`` does)."""
+    from ..organ_motion import SCENARIO
+
+    if kind in ("encoders", "carriage"):
+        return f"{args.scenario} (the robot whose encoder log this is: --scenario)"
+    return "" if str(args.scenario) == SCENARIO else str(args.scenario)
+
+
+def reference_words(args) -> str:
+    """The reference a verdict judges against, as the command line chose it: the motion (or
+    trace file) with every ``--param``, ``--add`` and trace option given, e.g. ``breathing
+    --param tilt=2deg``; the defaults stand for the rest."""
+    import argparse
+
+    from ..execution.trace_options import add_trace_arguments
+
+    words = [str(args.motion)]
+    for option in ("param", "add"):
+        for value in getattr(args, option, None) or ():
+            words.append(f"--{option} {value}")
+    defaults = argparse.ArgumentParser()
+    add_trace_arguments(defaults)
+    for name, default in vars(defaults.parse_args([])).items():
+        value = getattr(args, name, default)
+        if value != default:
+            words.append(f"--{name.replace('_', '-')} {value}")
+    return " ".join(words)
 
 
 def _identities(args, context) -> dict:

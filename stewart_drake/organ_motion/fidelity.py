@@ -56,7 +56,12 @@ GAMMA_CRITERIA = ((0.5e-3, 0.1), (5e-6, 0.01))
 
 
 def gamma_pass_rate(t, p, p_d, distance_m: float, time_s: float) -> float:
-    """Share of the samples whose gamma index is at most 1: gamma_i = min over the reference's
+    """Share of the samples whose gamma index (:func:`gamma_index`) is at most 1."""
+    return float(np.mean(gamma_index(t, p, p_d, distance_m, time_s) <= 1.0))
+
+
+def gamma_index(t, p, p_d, distance_m: float, time_s: float) -> np.ndarray:
+    """The gamma index of each sample: gamma_i = min over the reference's
     samples j within ``time_s`` of t_i of sqrt((|p_i - p_d,j| / distance_m)^2 + ((t_i -
     t_j) / time_s)^2), the distance-to-agreement test of dosimetry applied to a motion trace in
     time and space (as motion-phantom commissioning reports it; e.g. 0.5 mm / 100 ms).
@@ -66,7 +71,7 @@ def gamma_pass_rate(t, p, p_d, distance_m: float, time_s: float) -> float:
             X, Y, Z). p_d: (n, k) the reference at the same times.
         distance_m, time_s: the criteria, > 0.
     Returns:
-        the pass rate in [0, 1].
+        (n,) gamma_i >= 0 (a sample passes at most 1).
     Raises:
         InvalidConfigError: non-positive criteria, shapes that differ, fewer than 2 samples.
     """
@@ -85,7 +90,7 @@ def gamma_pass_rate(t, p, p_d, distance_m: float, time_s: float) -> float:
         lo, hi = max(0, -k), min(t.size, t.size - k)
         d2 = np.sum((p[lo:hi] - p_d[lo + k : hi + k]) ** 2, axis=1) / distance_m**2
         np.minimum(best[lo:hi], d2 + (k * dt / time_s) ** 2, out=best[lo:hi])
-    return float(np.mean(best <= 1.0))
+    return np.sqrt(best)
 
 
 def time_lag(
@@ -214,10 +219,12 @@ def _window_views(t, x, x_d, window) -> tuple:
 
 
 def _cycle_errors(t, x, x_d, cycle_starts) -> dict:
-    """{"starts", "rms_translation_m", "rms_rotation_rad", "peak_translation_m"}: the error of
-    each cycle between ``cycle_starts`` that lies inside the data (see :func:`fidelity`)."""
+    """{"starts", "rms_translation_m", "rms_rotation_rad", "peak_translation_m", "rms"}: the
+    error of each cycle between ``cycle_starts`` that lies inside the data (see
+    :func:`fidelity`; ``rms`` a (6,) list per cycle, rad and m)."""
     cycles: dict[str, list] = {
         "starts": [],
+        "rms": [],
         "rms_translation_m": [],
         "rms_rotation_rad": [],
         "peak_translation_m": [],
@@ -231,6 +238,7 @@ def _cycle_errors(t, x, x_d, cycle_starts) -> dict:
             ec = np.subtract(x[c], x_d[c], dtype=float)
             ct, cr = rms_translation_rotation(ec)
             cycles["starts"].append(float(a))
+            cycles["rms"].append(np.sqrt(np.mean(np.square(ec[:, :6]), axis=0)).tolist())
             cycles["rms_translation_m"].append(ct)
             cycles["rms_rotation_rad"].append(cr)
             cycles["peak_translation_m"].append(float(np.linalg.norm(ec[:, 3:], axis=1).max()))
@@ -262,7 +270,7 @@ def fidelity(
         :data:`GAMMA_CRITERIA`, :func:`gamma_pass_rate`);
         ``harmonics`` (rows: source, k, f_hz, axis, reference amplitude, amplitude_error as a
         fraction, phase_error_rad, negative = late); ``cycles`` {"starts", "rms_translation_m",
-        "rms_rotation_rad", "peak_translation_m"}.
+        "rms_rotation_rad", "peak_translation_m", "rms" (per cycle, per axis)}.
     Raises:
         InvalidConfigError: fewer than 10 samples (in all, or in the window), or shapes that
             differ.
@@ -461,6 +469,7 @@ __all__ = [
     "GAMMA_CRITERIA",
     "rms_translation_rotation",
     "gamma_pass_rate",
+    "gamma_index",
     "time_lag",
     "harmonic_phasors",
     "fidelity",

@@ -6,8 +6,11 @@ A verdict compares the motion measured on the axes it measures, put on the refer
 in the frames of :mod:`~.alignment` (nothing fitted to it but the clock and, with the ``"axes"``
 frames, one constant per axis), against the reference: PASS when every measured axis's RMS error
 over the window is within the tolerance and, with the clocks' relation known, the latency
-within its bound. A FAIL names its causes, found from the aligned motion over the window, per
-measured axis k with the reference's motion r_k and the measured q_k, each less its mean:
+within its bound. With an action level (``--action-level``, TG-142's; pylinac's
+``action_tolerance``), a PASS with an axis's RMS error beyond it is ACTION instead: within the
+tolerance, to be looked at before it fails (:func:`axis_levels`). A FAIL names its causes,
+found from the aligned motion over the window, per measured axis k with the reference's motion
+r_k and the measured q_k, each less its mean:
 
 - the phantom at rest: every measured axis along which the reference moves moved less than
   :data:`AT_REST_SHARE` of it (RMS);
@@ -96,9 +99,10 @@ class Judgement:
     """A measured motion's verdict (module docstring).
 
     Attributes:
-        passed: whether the verdict is PASS. line: it in one line: PASS, FAIL or CANNOT JUDGE,
-            what was compared, the tolerance, the window, the largest errors, the latency, and
-            the causes of a FAIL (or why it cannot judge).
+        passed: whether every measured axis is within the tolerance and the rest holds (the
+            verdict PASS or ACTION). line: it in one line: the verdict's word
+            (:attr:`verdict`), what was compared, the tolerance, the window, the largest
+            errors, the latency, and the causes of a FAIL (or why it cannot judge).
         compared: what was compared, in words (the file, its axes, the frames, the reference).
         causes: why it fails, one phrase each (empty when it passes).
         axes: {axis: {"rms", "motion_rms", "reference_rms", "gain", "correlation",
@@ -108,6 +112,9 @@ class Judgement:
         sensitivity: :func:`sensitivity`.
         cannot_judge: why the check cannot tell the motion from none at the tolerance (module
             docstring), or "" when it can.
+        action_level: (m, rad) the action level judged against, or None.
+        action: {axis: RMS error, m or rad} of the measured axes within the tolerance but
+            beyond the action level (empty without one).
     """
 
     passed: bool
@@ -118,11 +125,16 @@ class Judgement:
     latency_judged: bool = False
     sensitivity: dict = field(default_factory=dict)
     cannot_judge: str = ""
+    action_level: tuple | None = None
+    action: dict = field(default_factory=dict)
 
     @property
     def verdict(self) -> str:
-        """``"PASS"``, ``"FAIL"`` or ``"CANNOT JUDGE"``."""
-        return "PASS" if self.passed else "CANNOT JUDGE" if self.cannot_judge else "FAIL"
+        """``"PASS"``, ``"ACTION"`` (passed, an axis beyond the action level), ``"FAIL"`` or
+        ``"CANNOT JUDGE"``."""
+        if not self.passed:
+            return "CANNOT JUDGE" if self.cannot_judge else "FAIL"
+        return "ACTION" if self.action else "PASS"
 
     def as_dict(self) -> dict:
         """The judgement as JSON values."""
@@ -136,7 +148,60 @@ class Judgement:
             "axes": self.axes,
             "latency_judged": self.latency_judged,
             "sensitivity": self.sensitivity,
+            "action_level": None if self.action_level is None else list(self.action_level),
+            "action": self.action,
         }
+
+
+def axis_levels(rms, measured, tolerance, action_level=None) -> dict:
+    """{axis: "PASS", "ACTION" or "FAIL"} per measured axis: FAIL when its RMS error is beyond
+    the tolerance, ACTION when within it but beyond the action level (when given), else PASS.
+
+    Args:
+        rms: (6,) RMS error per axis, rad and m. measured: (6,) bool. tolerance, action_level:
+            (m, rad); action_level may be None.
+    """
+    tol = axis_tolerances(tolerance)
+    act = None if action_level is None else axis_tolerances(action_level)
+    out = {}
+    for k in np.flatnonzero(measured):
+        if not rms[k] <= tol[k]:
+            out[AXES[k]] = "FAIL"
+        elif act is not None and rms[k] > act[k]:
+            out[AXES[k]] = "ACTION"
+        else:
+            out[AXES[k]] = "PASS"
+    return out
+
+
+def check_action_level(action_level, tolerance) -> None:
+    """Refuse an action level not within (0, tolerance] on both kinds of axis.
+
+    Raises:
+        InvalidConfigError: naming ``--action-level`` and the bound.
+    """
+    from ..base.errors import InvalidConfigError
+
+    for value, limit, what, shown in zip(
+        action_level, tolerance, ("length", "angle"), (format_length, format_angle)
+    ):
+        if not 0.0 < value <= limit:
+            raise InvalidConfigError(
+                f"--action-level: its {what} must be above 0 and at most the --tolerance's "
+                f"{shown(limit)}, got {shown(value)}"
+            )
+
+
+def action_words(action: dict, action_level) -> str:
+    """The verdict line's note on the axes beyond the action level, or "" without any."""
+    if not action:
+        return ""
+    axes = ", ".join(f"{a} {axis_amount(AXES.index(a), v)}" for a, v in action.items())
+    return (
+        f"; beyond the action level {format_length(action_level[0])} | "
+        f"{format_angle(action_level[1])}: {axes} (within the tolerance: to be looked at "
+        "before it fails)"
+    )
 
 
 def _signed(k: int, v: float) -> str:
@@ -448,11 +513,11 @@ def compared_words(ver) -> str:
     return f"{Path(m.path).name} ({axes}; {how}) against {ver.name}"
 
 
-def judge(ver, tolerance: tuple[float, float]) -> Judgement:
+def judge(ver, tolerance: tuple[float, float], action_level=None) -> Judgement:
     """The verdict on a :class:`~.verification.Verification` at ``tolerance`` (m, rad):
     PASS when every measured axis's RMS error over the window is within it and, with the clocks'
-    relation known, |latency| within ``ver.max_latency_s``; a FAIL's causes (module
-    docstring)."""
+    relation known, |latency| within ``ver.max_latency_s``; ACTION instead when an axis is
+    beyond ``action_level`` (m, rad; None: none); a FAIL's causes (module docstring)."""
     fid = ver.fidelity
     measured = np.asarray(ver.measured.measured, dtype=bool)
     tol = axis_tolerances(tolerance)
@@ -517,12 +582,16 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     else:
         lat = "latency not judged (the clocks' relation not given)"
     compared = compared_words(ver)
-    word = "PASS" if passed else "CANNOT JUDGE" if unseen else "FAIL"
+    levels = axis_levels(rms, measured, tolerance, action_level)
+    action = {a: float(rms[AXES.index(a)]) for a, v in levels.items() if v == "ACTION"}
+    action = action if passed else {}
+    word = ("ACTION" if action else "PASS") if passed else "CANNOT JUDGE" if unseen else "FAIL"
     line = (
         f"{word}: {compared}: RMS error per axis "
         f"{'within' if ok else 'beyond'} {format_length(tolerance[0])} | "
         f"{format_angle(tolerance[1])} over t = {format_window(w0, w1)} s (largest: "
         f"{', '.join(largest)}); {lat}"
+        + action_words(action, action_level)
         + (f"; cause: {'; '.join(causes)}" if causes else "")
         + (f"; {left_out}" if left_out and not too_much else "")
         + (f"; {unseen}" if unseen else "")
@@ -541,6 +610,8 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         latency_judged,
         sensitivity(t[m], x_d[m], measured, tolerance, ver.frame.removes_offsets),
         unseen,
+        action_level,
+        action,
     )
 
 
@@ -550,7 +621,10 @@ __all__ = [
     "PERIOD_SHARE",
     "EDGE_S",
     "Judgement",
+    "action_words",
     "axis_figures",
+    "axis_levels",
+    "check_action_level",
     "causes_of",
     "compared_words",
     "judge",

@@ -8,14 +8,24 @@ when given, an action level; per measured axis the RMS and peak error beside the
 they are judged against; the causes of a FAIL or why the check cannot judge; the plots of the
 verification's report (measured against reference per axis, the error over time, gamma); the
 assumptions (the frames and the registration with its uncertainty, the clocks, the window);
-every input's name, size and SHA-256; the phantom (scenario, serial); the software's versions;
-the date, the operator and the notes; and lines to sign.
+the reference as the command line chose it (the motion and its parameters), the measuring
+device and whether it is independent of the robot (the robot's own encoder log is not), the
+cycles judged; every input's name, size and SHA-256; the phantom (the robot whose encoder log
+was read, or the ``--scenario`` given: never a default the run did not name) and its serial;
+the software's versions; the date, the operator and the notes; and lines to sign.
 
-The levels, per axis: an RMS error beyond the tolerance FAILs (the verdict of
-:func:`~.measured_verdict.judge`, unchanged); one within it but beyond the action level is
-ACTION (within tolerance, to be looked at before it fails: TG-142's action level, pylinac's
-``action_tolerance``); the verdict is the worst of the axes, and CANNOT JUDGE when the judgement
-cannot (:func:`~.verdict_sensitivity.motion_unseen`).
+The verdict is the judgement's own (:attr:`~.measured_verdict.Judgement.verdict`), the word the
+terminal, the report, the JSON and every page say: per axis an RMS error beyond the tolerance
+FAILs; one within it but beyond the action level is ACTION (within tolerance, to be looked at
+before it fails: TG-142's action level, pylinac's ``action_tolerance``;
+:func:`~.measured_verdict.axis_levels`); CANNOT JUDGE when the judgement cannot
+(:func:`~.verdict_sensitivity.motion_unseen`).
+
+The PDF's pages (:mod:`.qa_record_pdf`): the verdict with its per-axis tables (one unit per
+column), the causes, the measurement, the phantom and the lines to sign; the verdict's line, the
+assumptions and the inputs; the plots (:mod:`.qa_record_figure`: each measured axis against its
+own tolerance, the RMS error per cycle, the gamma index). No table is split across pages, and
+each page says "page X of Y".
 
 Records are never overwritten: each is named by its verdict's time, and a name already taken
 gets ``-2``, ``-3``... (the file is created exclusively).
@@ -37,7 +47,9 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
-from .fidelity import AXES, format_angle, format_length
+from .fidelity import AXES
+from .measured_verdict import axis_levels as _axis_levels
+from .qa_record_pdf import record_pdf
 
 #: The record's JSON layout; a reader checks it before reading the values.
 RECORD_SCHEMA = "stewart-drake/verify-record/1"
@@ -59,9 +71,10 @@ class RecordContext:
 
     Attributes:
         operator: who ran the QA. phantom_serial: the phantom's serial number. notes: free text.
-        scenario: the phantom's scenario (its name or file). action_level: (m, rad) per-axis
-            RMS errors beyond which a result within tolerance is ACTION, or None (no action
-            level). inputs: the files the verdict read (the measured file, the reference's
+        scenario: the phantom (the robot whose encoder log was read, or the scenario named;
+            "": not named). reference: the reference as the command line chose it (the
+            motion and its parameters). inputs: the files the verdict read (the measured file,
+            the reference's
             trace, the registration). identities: each input's :func:`file_identity` taken
             before it was read, or none: the record's must be the same, or the file changed
             while it was judged and no record is written.
@@ -71,13 +84,12 @@ class RecordContext:
     phantom_serial: str = ""
     notes: str = ""
     scenario: str = ""
-    action_level: tuple | None = None
+    reference: str = ""
     inputs: tuple = ()
     identities: tuple = ()
 
-    def check(self, tolerance: tuple[float, float]) -> None:
-        """Refuse, before any work, texts longer than :data:`MAX_TEXT` and an action level
-        that is not within (0, tolerance] on both kinds of axis.
+    def check(self) -> None:
+        """Refuse, before any work, texts longer than :data:`MAX_TEXT`.
 
         Raises:
             InvalidConfigError: naming the option.
@@ -91,17 +103,6 @@ class RecordContext:
                 raise InvalidConfigError(
                     f"{option}: {len(text)} characters, at most {MAX_TEXT} in a record"
                 )
-        if self.action_level is not None:
-            from .fidelity import format_angle, format_length
-
-            for value, limit, what, shown in zip(
-                self.action_level, tolerance, ("length", "angle"), (format_length, format_angle)
-            ):
-                if not 0.0 < value <= limit:
-                    raise InvalidConfigError(
-                        f"--action-level: its {what} must be above 0 and at most the "
-                        f"--tolerance's {shown(limit)}, got {shown(value)}"
-                    )
 
 
 def file_identity(path) -> dict:
@@ -139,31 +140,27 @@ def software_versions() -> dict:
     return out
 
 
-def axis_levels(ver, tolerance, action_level) -> dict:
-    """{axis: level} per measured axis: FAIL beyond the tolerance, ACTION beyond the action
-    level (when given), else PASS (module docstring)."""
-    rms = ver.fidelity["rms"]
-    out = {}
-    for k in np.flatnonzero(ver.measured.measured):
-        limit = tolerance[0] if k >= 3 else tolerance[1]
-        action = None if action_level is None else action_level[0 if k >= 3 else 1]
-        value = rms[k]
-        if not value <= limit:
-            out[AXES[k]] = "FAIL"
-        elif action is not None and value > action:
-            out[AXES[k]] = "ACTION"
-        else:
-            out[AXES[k]] = "PASS"
-    return out
+def axis_levels(ver, tolerance) -> dict:
+    """{axis: "PASS", "ACTION" or "FAIL"} per measured axis of ``ver`` at ``tolerance`` and
+    the judgement's action level (:func:`~.measured_verdict.axis_levels`)."""
+    rms = np.asarray(ver.fidelity["rms"], dtype=float)
+    return _axis_levels(rms, ver.measured.measured, tolerance, ver.judgement.action_level)
 
 
-def record_verdict(ver, tolerance, action_level) -> str:
-    """The record's verdict (module docstring): the judgement's FAIL or CANNOT JUDGE as it is;
-    a PASS is ACTION when an axis is beyond the action level."""
-    verdict = ver.judgement.verdict
-    if verdict != "PASS":
-        return verdict
-    return "ACTION" if "ACTION" in axis_levels(ver, tolerance, action_level).values() else "PASS"
+def device_words(measured) -> tuple[str, bool]:
+    """(the measuring device in words, whether it is independent of the robot) of a
+    :class:`~.measured_motion.MeasuredMotion`: a tracker's file is; the robot's own encoder log
+    is not (its encoders see neither the gears' play, nor what bends, nor a geometry that is
+    wrong: forward kinematics of the model turn them into poses)."""
+    if measured.kind in ("encoders", "carriage"):
+        return (
+            "the robot's own encoder log (forward kinematics of the robot's model): not "
+            "independent of the robot; it sees neither the gears' play nor what bends, and "
+            "whether its bus was emulated is not written in the log: an acceptance needs an "
+            "external tracker",
+            False,
+        )
+    return f"an external tracker's file ({measured.layout or 'as read'})", True
 
 
 def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict:
@@ -172,15 +169,20 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
     ``tolerance_deg``, ``action_mm`` / ``action_deg`` (None without), ``rms_<axis>_mm`` or
     ``_deg`` and ``peak_<axis>_...`` per axis (None for an axis not measured), ``level_<axis>``,
     ``latency_ms``, ``latency_judged``, ``gamma_pass_rate_pct`` (None without translations),
-    ``window_s``, the identity (``reference``, ``measured_file``, ``inputs`` with their SHA-256,
-    ``scenario``, ``phantom_serial``, ``operator``, ``notes``, ``date``, ``software``), the
-    judgement's ``line`` and ``causes``, and ``schema`` (:data:`RECORD_SCHEMA`)."""
+    ``window_s``, ``cycles_judged`` (the reference's cycles the window holds: one the
+    recording misses by at most :data:`~.measured_span.CYCLE_SLACK` of a cycle counts), the
+    identity (``reference``, ``reference_motion`` (the motion and its parameters),
+    ``measured_file``, ``measuring_device`` and ``independent``, ``inputs`` with their SHA-256,
+    ``scenario`` (the phantom; "" when the run names none), ``phantom_serial``, ``operator``,
+    ``notes``, ``date``, ``software``), the judgement's ``line`` and ``causes``, and ``schema``
+    (:data:`RECORD_SCHEMA`)."""
     fid = ver.fidelity
-    levels = axis_levels(ver, tolerance, context.action_level)
-    action = context.action_level
+    levels = axis_levels(ver, tolerance)
+    action = ver.judgement.action_level
+    device, independent = device_words(ver.measured)
     out: dict = {
         "schema": RECORD_SCHEMA,
-        "verdict": record_verdict(ver, tolerance, action),
+        "verdict": ver.judgement.verdict,
         "passed": bool(ver.judgement.passed),
         "tolerance_mm": tolerance[0] * 1e3,
         "tolerance_deg": math.degrees(tolerance[1]),
@@ -204,8 +206,12 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
             "gamma_pass_rate_pct": 100 * gamma["pass_rate"] if translations else None,
             "gamma_criteria": f"{gamma['distance_m'] * 1e3:g} mm / {gamma['time_s'] * 1e3:g} ms",
             "window_s": [float(v) for v in fid["window_s"]],
+            "cycles_judged": max(len(ver.cycle_starts) - 1, 0),
             "reference": ver.name,
+            "reference_motion": context.reference or ver.name,
             "measured_file": Path(ver.measured.path).name,
+            "measuring_device": device,
+            "independent": independent,
             "inputs": _unchanged_inputs(context),
             "frames": ver.frame.words(ver.offsets, ver.measured.measured),
             "clock": ver.clock,
@@ -272,24 +278,27 @@ def _exclusive(folder: Path, stem: str, suffixes: tuple) -> tuple:
     )
 
 
-def write_record(ver, out, tolerance, context: RecordContext, figure: Path, stem: str) -> tuple:
+def write_record(ver, out, tolerance, context: RecordContext, stem: str) -> tuple:
     """Write the QA record of a verification into ``out/records``: ``<stem>_<time>.pdf``
-    (:func:`record_pdf`) and ``<stem>_<time>.json`` (:func:`results_data`), never over an
-    earlier one (module docstring).
+    (:func:`record_pdf`, its plots drawn from ``ver`` by
+    :func:`~.qa_record_figure.record_figure`) and ``<stem>_<time>.json``
+    (:func:`results_data`), never over an earlier one (module docstring).
 
     Args:
         ver: the :class:`~.verification.Verification`. out: the output folder. tolerance:
-            (m, rad). context: :class:`RecordContext`. figure: the verification's PNG (its
-            report's plots). stem: the report's stem.
+            (m, rad). context: :class:`RecordContext`. stem: the report's stem.
     Returns:
         (pdf path, json path).
     Raises:
         MissingExtraError: reportlab is not installed (the ``qa`` extra), before any file.
         InvalidConfigError: :func:`_exclusive`'s.
     """
+    from .qa_record_figure import record_figure
+
     _reportlab()
     when = datetime.now().astimezone()
     data = results_data(ver, tolerance, context, when)
+    figure = record_figure(ver, tolerance, ver.judgement.action_level)
     pdf, js = _exclusive(Path(out) / "records", f"{stem}_{when:%Y%m%dT%H%M%S}", (".pdf", ".json"))
     try:  # the PDF first: a JSON saying PASS never stands beside an empty or cut PDF
         record_pdf(pdf, data, figure)
@@ -312,245 +321,6 @@ def _reportlab():
             "--record out: verify's .md, .png and .json are written without it)"
         ) from None
     return reportlab
-
-
-#: The colour of each verdict on the record's first page.
-_VERDICT_COLOURS = dict(zip(LEVELS, ("#1a7f37", "#b35900", "#5a5a5a", "#c62828")))
-
-
-class _Flowables:
-    """The record's reportlab styles, and its paragraphs and tables made with them."""
-
-    def __init__(self):
-        from reportlab.lib import colors
-        from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
-
-        self.colors = colors
-        self.styles = getSampleStyleSheet()
-        self.body = ParagraphStyle("body", parent=self.styles["BodyText"], fontSize=9, leading=11.5)
-        self.small = ParagraphStyle("small", parent=self.body, fontSize=7.5, leading=9.5)
-        self.head = self.styles["Heading3"]
-
-    def p(self, text, style=None):
-        """A paragraph of ``text``, escaped (a file's name is text, not markup)."""
-        from xml.sax.saxutils import escape
-
-        from reportlab.platypus import Paragraph
-
-        return Paragraph(escape(str(text)), style or self.body)
-
-    def table(self, rows, widths, header=True):
-        """A gridded table, its first row shaded when it is a ``header``."""
-        from reportlab.platypus import Table, TableStyle
-
-        t = Table(rows, colWidths=widths, hAlign="LEFT")
-        style = [
-            ("FONTSIZE", (0, 0), (-1, -1), 8.5),
-            ("VALIGN", (0, 0), (-1, -1), "TOP"),
-            ("GRID", (0, 0), (-1, -1), 0.4, self.colors.grey),
-        ]
-        if header:
-            style.append(("BACKGROUND", (0, 0), (-1, 0), self.colors.HexColor("#e8e8e8")))
-        t.setStyle(TableStyle(style))
-        return t
-
-
-def _axis_rows(data: dict) -> list:
-    """The per-axis table of the record: a header, then each axis judged (RMS and peak error,
-    tolerance, action level, its level)."""
-    rows = [["axis", "RMS error", "peak error", "tolerance", "action level", "level"]]
-    for k, axis in enumerate(AXES):
-        name = axis.lower()
-        unit = "mm" if k >= 3 else "deg"
-        if data[f"level_{name}"] is None:
-            continue
-        rms, peak = data[f"rms_{name}_{unit}"], data[f"peak_{name}_{unit}"]
-        show = format_length if k >= 3 else format_angle
-        scale = 1e-3 if k >= 3 else math.radians(1.0)
-        limit = data["tolerance_mm"] if k >= 3 else data["tolerance_deg"]
-        act = data["action_mm"] if k >= 3 else data["action_deg"]
-        rows.append(
-            [
-                axis,
-                show(rms * scale),
-                show(peak * scale),
-                show(limit * scale),
-                "-" if act is None else show(act * scale),
-                data[f"level_{name}"],
-            ]
-        )
-    return rows
-
-
-def _latency_and_gamma(data: dict) -> str:
-    """The record's line on the latency (judged or not) and the gamma pass rate."""
-    from .verification import seconds
-
-    gamma = (
-        "not computed (no translation measured)"
-        if data["gamma_pass_rate_pct"] is None
-        else f"{data['gamma_pass_rate_pct']:.4g} % at {data['gamma_criteria']}"
-    )
-    latency = seconds(data["latency_ms"] * 1e-3) + (
-        f", judged against {seconds(data['max_latency_ms'] * 1e-3)}"
-        if data["latency_judged"]
-        else ", not judged (the clocks' relation not given)"
-    )
-    return f"Latency {latency}. Gamma pass rate {gamma}."
-
-
-def _signature_table(f: _Flowables):
-    """The lines to sign: performed by, reviewed by, each with its signature and date."""
-    from reportlab.lib.units import mm
-    from reportlab.platypus import Table, TableStyle
-
-    grey = f.colors.HexColor("#e8e8e8")
-    return Table(
-        [
-            ["Performed by", "Signature", "Date"],
-            ["", "", ""],
-            ["Reviewed by", "Signature", "Date"],
-            ["", "", ""],
-        ],
-        colWidths=[60 * mm, 60 * mm, 50 * mm],
-        rowHeights=[6 * mm, 14 * mm, 6 * mm, 14 * mm],
-        hAlign="LEFT",
-        style=TableStyle(
-            [
-                ("FONTSIZE", (0, 0), (-1, -1), 8.5),
-                ("GRID", (0, 0), (-1, -1), 0.4, f.colors.grey),
-                ("BACKGROUND", (0, 0), (-1, 0), grey),
-                ("BACKGROUND", (0, 2), (-1, 2), grey),
-            ]
-        ),
-    )
-
-
-def _assumptions_and_inputs(data: dict, f: _Flowables) -> list:
-    """The record's verdict line, its assumptions (frames, clock, window), its inputs with their
-    SHA-256 and the phantom, operator and software."""
-    from reportlab.lib.units import mm
-
-    p, small, head = f.p, f.small, f.head
-    software = ", ".join(f"{k} {v}" for k, v in data["software"].items())
-    return [
-        p("Verdict", head),
-        p(data["line"], small),
-        p("Assumptions", head),
-        p(f"Frames: {data['frames']}"),
-        p(
-            f"Clock: {data['clock']} (offset {data['clock_offset_s']:+.6g} s); window t = "
-            f"{data['window_s'][0]:.4g} to {data['window_s'][1]:.4g} s of the reference."
-        ),
-        p("Inputs", head),
-        f.table(
-            [["file", "bytes", "SHA-256"]]
-            + [
-                [p(i["name"], small), str(i["bytes"]), p(i["sha256"], small)]
-                for i in data["inputs"]
-            ],
-            [50 * mm, 20 * mm, 100 * mm],
-        ),
-        p("Phantom, operator, software", head),
-        f.table(
-            [
-                ["phantom (scenario)", p(data["scenario"] or "-", small)],
-                ["serial", p(data["phantom_serial"] or "-", small)],
-                ["operator", p(data["operator"] or "-", small)],
-                ["date", data["date"]],
-                ["notes", p(data["notes"] or "-", small)],
-                ["software", p(software, small)],
-            ],
-            [40 * mm, 130 * mm],
-            header=False,
-        ),
-    ]
-
-
-def _record_story(data: dict, figure, f: _Flowables) -> list:
-    """The record's flowables: page 1 the verdict, the per-axis table, the causes, the
-    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
-    verification's plots (when ``figure`` exists)."""
-    from reportlab.lib.styles import ParagraphStyle
-    from reportlab.lib.units import mm
-    from reportlab.platypus import Image, PageBreak, Spacer
-
-    p, head, styles = f.p, f.head, f.styles
-    verdict = data["verdict"]
-    big = ParagraphStyle(
-        "verdict",
-        parent=styles["Title"],
-        textColor=f.colors.HexColor(_VERDICT_COLOURS[verdict]),
-        fontSize=26,
-        leading=30,
-    )
-    tol = f"{data['tolerance_mm']:g} mm | {data['tolerance_deg']:g} deg RMS per axis"
-    action = (
-        "none given"
-        if data["action_mm"] is None
-        else f"{data['action_mm']:g} mm | {data['action_deg']:g} deg RMS per axis"
-    )
-    story = [
-        p("Motion phantom QA record", styles["Title"]),
-        p(f"{data['reference']} measured in {data['measured_file']}", styles["Heading2"]),
-        p(verdict, big),
-        p(f"Tolerance {tol}; action level {action}."),
-        Spacer(1, 3 * mm),
-        f.table(_axis_rows(data), [18 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm, 28 * mm]),
-        Spacer(1, 3 * mm),
-        p(_latency_and_gamma(data)),
-    ]
-    if data["causes"]:
-        story += [p("Why it fails", head), *(p(f"- {c}") for c in data["causes"])]
-    if data["cannot_judge"]:
-        story += [p("Why it cannot judge", head), p(data["cannot_judge"])]
-    story += [*_assumptions_and_inputs(data, f), Spacer(1, 10 * mm), _signature_table(f)]
-    if figure is not None and Path(figure).exists():
-        from PIL import Image as PILImage
-
-        with PILImage.open(figure) as im:
-            w, h = im.size
-        width = 180 * mm
-        story += [
-            PageBreak(),
-            p("The verification's plots", styles["Heading2"]),
-            Image(str(figure), width=width, height=width * h / w),
-        ]
-    return story
-
-
-def record_pdf(path: Path, data: dict, figure: Path) -> None:
-    """The record's PDF (A4): page 1 the verdict, the per-axis table, the causes, the
-    assumptions, the inputs, the phantom, the software and the lines to sign; page 2 the
-    verification's plots."""
-    from reportlab.lib.pagesizes import A4
-    from reportlab.lib.units import mm
-    from reportlab.platypus import SimpleDocTemplate
-
-    story = _record_story(data, figure, _Flowables())
-
-    def footer(canvas, doc):
-        canvas.saveState()
-        canvas.setFont("Helvetica", 7)
-        canvas.drawString(
-            15 * mm,
-            8 * mm,
-            f"{data['reference']} / {data['measured_file']} / {data['date']} / "
-            f"{data['verdict']} / page {doc.page}",
-        )
-        canvas.restoreState()
-
-    doc = SimpleDocTemplate(
-        str(path),
-        pagesize=A4,
-        leftMargin=15 * mm,
-        rightMargin=15 * mm,
-        topMargin=12 * mm,
-        bottomMargin=15 * mm,
-        title=f"QA record: {data['reference']}, {data['measured_file']}",
-        author=data["operator"] or "stewart-drake verify",
-    )
-    doc.build(story, onFirstPage=footer, onLaterPages=footer)
 
 
 def read_results(path) -> dict:
@@ -576,7 +346,7 @@ __all__ = [
     "file_identity",
     "software_versions",
     "axis_levels",
-    "record_verdict",
+    "device_words",
     "results_data",
     "write_record",
     "record_pdf",

@@ -252,6 +252,7 @@ def _not_measured(fid: dict, measured: np.ndarray, t, x, x_d) -> dict:
     for key in ("rms", "peak", "rms_fraction", "peak_fraction"):
         fid[key] = [math.nan if k in off else v for k, v in enumerate(fid[key])]
     cycles = dict(fid["cycles"])
+    cycles["rms"] = [[math.nan if k in off else v for k, v in enumerate(c)] for c in cycles["rms"]]
     if not np.any(measured[:3]):
         fid["rms_rotation_rad"] = fid["peak_rotation_rad"] = math.nan
         cycles["rms_rotation_rad"] = [math.nan] * len(cycles["rms_rotation_rad"])
@@ -283,6 +284,7 @@ def verify(
     max_gap_s: float = MAX_GAP_S,
     pauses: bool = False,
     exclude_outliers: bool = False,
+    action_level: tuple[float, float] | None = None,
     _whole: bool = True,
     _excluded: int = 0,
 ) -> Verification:
@@ -314,6 +316,8 @@ def verify(
             (:func:`~.verdict_notes.outliers`, found on the clock of the whole recording):
             they are left out of the file and it is judged again, its line saying how many;
             without, the line names them and the verdict of the rest.
+        action_level: (m, rad) the RMS error per axis beyond which a PASS is ACTION
+            (:func:`~.measured_verdict.axis_levels`), or None.
     Returns:
         :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
@@ -336,6 +340,7 @@ def verify(
     t, y = measured.t, np.array(measured.poses, dtype=float)
     options = dict(frame=frame, registration=registration, max_latency_s=max_latency_s)
     options.update(tolerance=tolerance, max_gap_s=max_gap_s, pauses=pauses)
+    options.update(action_level=action_level)
     if clock_offset_s is not None:
         check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
@@ -421,7 +426,7 @@ def verify(
     )
     if exclude_outliers and ver.outliers["frames"]:
         return _without_outliers(ver, reference, measured, clock_offset_s, options, _whole)
-    ver.judgement = judge(ver, tolerance)
+    ver.judgement = judge(ver, tolerance, action_level)
     if _whole and clock == "not known" and ver.judgement.verdict == "FAIL":
         return _best_part(ver, reference, measured, options)
     return ver
