@@ -160,6 +160,22 @@ def test_an_action_level_and_a_fail_are_recorded_as_such(tmp_path, exports, caps
     assert data["level_x"] == "FAIL"
 
 
+def test_a_record_that_cannot_judge_says_so_on_every_axis_and_page(tmp_path, exports):
+    """At 10 mm the phantom at rest would pass too (the reference moves X 5.4 mm RMS): CANNOT
+    JUDGE, exit 3, in the JSON, on every axis (none says PASS) and every page's foot, with why
+    on the first page; the action level given does not make it ACTION."""
+    code, pdfs, jsons = record(
+        tmp_path, exports[0], "--tolerance", "10mm,1deg", "--action-level", "5mm,1deg"
+    )
+    data = json.loads(jsons[0].read_text())
+    assert code == 3 and data["verdict"] == "CANNOT JUDGE" and data["passed"] is False
+    assert [data[f"level_{a}"] for a in "xyz"] == ["CANNOT JUDGE"] * 3
+    texts = page_texts(pdfs[0])
+    assert "Why it cannot judge" in texts[0] and "PASS" not in texts[0]
+    for n, text in enumerate(texts, 1):
+        assert f"/ CANNOT JUDGE / page {n} of {len(texts)}" in text
+
+
 def test_the_action_level_grades_the_verdict_at_its_edge_without_a_record(tmp_path, exports):
     """``--action-level`` is the verdict's, with or without ``--record``: an action level just
     above the largest axis's RMS error PASSes (exit 0), one just below is ACTION (exit 4) on

@@ -142,9 +142,14 @@ def software_versions() -> dict:
 
 def axis_levels(ver, tolerance) -> dict:
     """{axis: "PASS", "ACTION" or "FAIL"} per measured axis of ``ver`` at ``tolerance`` and
-    the judgement's action level (:func:`~.measured_verdict.axis_levels`)."""
+    the judgement's action level (:func:`~.measured_verdict.axis_levels`); "CANNOT JUDGE" for
+    every axis within the tolerance when the judgement cannot judge (an axis's PASS would say
+    what the verdict refuses to)."""
     rms = np.asarray(ver.fidelity["rms"], dtype=float)
-    return _axis_levels(rms, ver.measured.measured, tolerance, ver.judgement.action_level)
+    levels = _axis_levels(rms, ver.measured.measured, tolerance, ver.judgement.action_level)
+    if ver.judgement.cannot_judge:
+        return {a: v if v == "FAIL" else "CANNOT JUDGE" for a, v in levels.items()}
+    return levels
 
 
 def device_words(measured) -> tuple[str, bool]:
