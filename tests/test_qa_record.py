@@ -355,3 +355,62 @@ def test_the_reference_is_recorded_as_the_command_line_chose_it():
     assert reference_words(parser.parse_args(["verify", "trace.txt", "--measured", "m"])) == (
         "trace.txt"
     )
+
+
+def test_a_cyrillic_or_greek_operator_is_drawn_in_an_embedded_typeface(tmp_path, exports):
+    """Helvetica, the PDF's standard face, has no Cyrillic or Greek glyph: the record embeds
+    DejaVu Sans (matplotlib's), so the signed page keeps the operator's name; the JSON holds it
+    as given."""
+    code, pdfs, jsons = record(tmp_path, exports[0], "--operator", "Ж. Физик", "--notes", "Ωμέγα")
+    assert code == 0
+    data = json.loads(jsons[0].read_text())
+    assert data["operator"] == "Ж. Физик" and data["notes"] == "Ωμέγα"
+    raw = pdfs[0].read_bytes()
+    assert re.search(rb"/BaseFont /[A-Z]{6}\+DejaVuSans\b", raw)
+
+
+@pytest.mark.parametrize(
+    "option, value, words",
+    [
+        ("--operator", "山田 太郎", "a character of no glyph in DejaVuSans ('山', CJK UNIFIED"),
+        ("--operator", "देव", "a character of no glyph in DejaVuSans ('द', DEVANAGARI"),
+        ("--notes", "דוד", "a right-to-left character ('ד', HEBREW LETTER DALET) at character 1"),
+        ("--phantom-serial", "SD-محمد", "a right-to-left character ('م', ARABIC LETTER MEEM)"),
+        ("--operator", "Jos\udce9", "a byte that is not UTF-8 (0xE9) at character 4"),
+    ],
+)
+def test_text_the_pdf_cannot_draw_is_refused_before_any_work(
+    tmp_path, exports, capsys, option, value, words
+):
+    """A name the signed page would lose (no glyph, or a right-to-left script reportlab would
+    draw reversed and unshaped, or a Latin-1 byte) is refused in one line naming the option,
+    before any work."""
+    code = main(
+        ["verify", "breathing", *PARAMS, "--measured", str(exports[0]), "--measured-columns"]
+        + [MARKER_COLUMNS, "--out", str(tmp_path / "o"), "--record", option, value]
+    )
+    err = capsys.readouterr().err
+    assert code == 2
+    assert f"{option}: {words}" in err and "the signed page would lose it" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_measured_file_whose_name_is_not_utf8_is_refused_before_any_work(
+    tmp_path, exports, capsys
+):
+    """A Latin-1 byte in the measured file's name (was: a 44-line traceback from the figure's
+    title): refused in one line naming the option and the byte, nothing written."""
+    import os
+    import shutil
+
+    name = os.fsdecode(b"mark\xe9rs.csv")
+    shutil.copy(exports[0], tmp_path / name)
+    code = main(
+        ["verify", "breathing", *PARAMS, "--measured", str(tmp_path / name), "--measured-columns"]
+        + [MARKER_COLUMNS, "--out", str(tmp_path / "o")]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert "its name is not UTF-8 text (byte 0xE9 at character" in err[0]
+    assert err[0].startswith("stewart-drake verify: --measured ")
+    assert not (tmp_path / "o").exists()

@@ -25,7 +25,13 @@ import threading
 from pathlib import Path
 
 from ..base.errors import StewartError
-from ..execution.options import check_outputs, command_inputs, compile_note, say_starting
+from ..execution.options import (
+    check_input_names,
+    check_outputs,
+    command_inputs,
+    compile_note,
+    say_starting,
+)
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs),
 #: with the folder under ``--out`` that keeps them.
@@ -154,7 +160,9 @@ def _main(argv: list[str] | None, own: bool = False) -> int:
         from ..base.fileio import inputs_kept
 
         # What the command reads is kept from what it writes, from its first check to its end.
-        with inputs_kept(command_inputs(args)):
+        inputs = command_inputs(args)
+        check_input_names(inputs)
+        with inputs_kept(inputs):
             check_outputs(args)
             if not own:
                 return int(args.func(args) or 0)

@@ -184,6 +184,33 @@ def command_inputs(args) -> list[tuple[str, Path]]:
     return found + (list(derived(args)) if derived is not None else [])
 
 
+def check_input_names(inputs) -> None:
+    """Refuse, before any work, an input whose name is not UTF-8 text (a byte such as 0xE9 of a
+    Latin-1 name, read from the command line as a lone surrogate): every report, figure and
+    record names the file, and none could write it.
+
+    Args:
+        inputs: :func:`command_inputs`'s (how a message names it, path).
+    Raises:
+        InvalidConfigError: naming the option, the byte and its place.
+    """
+    from ..base.errors import InvalidConfigError
+
+    for words, path in inputs:
+        name = str(path)
+        try:
+            name.encode("utf-8")
+        except UnicodeEncodeError as err:
+            code = ord(name[err.start])
+            byte = f"0x{code - 0xDC00:02X}" if 0xDC80 <= code <= 0xDCFF else f"U+{code:04X}"
+            shown = name.encode("utf-8", "backslashreplace").decode("ascii", "backslashreplace")
+            raise InvalidConfigError(
+                f"{words.split(' ', 1)[0]} {shown}: its name is not UTF-8 text (byte {byte} at "
+                f"character {err.start + 1}: a Latin-1 name?); the reports name the file: "
+                "rename it in UTF-8"
+            ) from None
+
+
 def check_outputs(args) -> None:
     """Every output the command of ``args`` names, checked before any work: ``--out``
     (:func:`check_output`, a file or a folder with its ``out_sub`` folders and the files

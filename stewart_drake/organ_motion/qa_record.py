@@ -49,7 +49,7 @@ import numpy as np
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
 from .fidelity import AXES
 from .measured_verdict import axis_levels as _axis_levels
-from .qa_record_pdf import record_pdf
+from .qa_record_pdf import FONT, record_pdf, undrawable
 
 #: The record's JSON layout; a reader checks it before reading the values.
 RECORD_SCHEMA = "stewart-drake/verify-record/1"
@@ -89,7 +89,9 @@ class RecordContext:
     identities: tuple = ()
 
     def check(self) -> None:
-        """Refuse, before any work, texts longer than :data:`MAX_TEXT`.
+        """Refuse, before any work, texts longer than :data:`MAX_TEXT` and texts the PDF
+        cannot draw (:func:`~.qa_record_pdf.undrawable`: a character of no glyph in its
+        typeface, a right-to-left script, a byte that is not UTF-8).
 
         Raises:
             InvalidConfigError: naming the option.
@@ -102,6 +104,13 @@ class RecordContext:
             if len(text) > MAX_TEXT:
                 raise InvalidConfigError(
                     f"{option}: {len(text)} characters, at most {MAX_TEXT} in a record"
+                )
+            why = undrawable(text)
+            if why:
+                raise InvalidConfigError(
+                    f"{option}: {why}: the record's PDF ({FONT}) cannot draw it, and the "
+                    "signed page would lose it; write it as UTF-8 text in Latin, Greek or "
+                    "Cyrillic letters"
                 )
 
 

@@ -12,10 +12,88 @@ page's foot names the record, its verdict and "page X of Y".
 
 from __future__ import annotations
 
+import functools
 import io
+import unicodedata
 from pathlib import Path
 
 from .fidelity import AXES
+
+#: The record's typeface: matplotlib's own DejaVu Sans (Latin, Greek, Cyrillic and more; always
+#: installed with matplotlib), embedded, so that a name in those scripts is drawn where the
+#: PDF's standard Helvetica would lose it to missing glyphs.
+FONT = "DejaVuSans"
+#: Its faces: regular, bold, oblique, bold oblique (reportlab's names, as registered).
+_FACES = {"": FONT, "-Bold": f"{FONT}-Bold", "-Oblique": f"{FONT}-Oblique"}
+_FACES["-BoldOblique"] = f"{FONT}-BoldOblique"
+
+
+def _font_file(face: str = "") -> Path:
+    """The TrueType file of a face of :data:`FONT` in matplotlib's data."""
+    import matplotlib
+
+    return Path(matplotlib.get_data_path()) / "fonts" / "ttf" / f"{FONT}{face}.ttf"
+
+
+@functools.lru_cache(maxsize=1)
+def _drawable_codepoints() -> frozenset:
+    """The code points :data:`FONT` has a glyph for (its cmap, read with fontTools, a
+    dependency of matplotlib)."""
+    from fontTools.ttLib import TTFont
+
+    with TTFont(str(_font_file()), lazy=True) as font:
+        return frozenset(font.getBestCmap())
+
+
+def undrawable(text: str) -> str:
+    """Why the record's PDF cannot draw ``text``, in words naming its first such character, or
+    "": a character of no glyph in :data:`FONT` (Japanese, Devanagari...), a right-to-left one
+    (Hebrew, Arabic: reportlab draws them left to right, unshaped), or a byte that is not
+    UTF-8 (read from the command line as a lone surrogate)."""
+    glyphs = _drawable_codepoints()
+    for i, c in enumerate(text):
+        code = ord(c)
+        if 0xD800 <= code <= 0xDFFF:
+            byte = f"0x{code - 0xDC00:02X}" if code >= 0xDC80 else f"U+{code:04X}"
+            return f"a byte that is not UTF-8 ({byte}) at character {i + 1}"
+        name = unicodedata.name(c, f"U+{code:04X}")
+        if unicodedata.bidirectional(c) in ("R", "AL"):
+            return f"a right-to-left character ({c!r}, {name}) at character {i + 1}"
+        if code not in glyphs and unicodedata.category(c)[0] != "C":
+            return f"a character of no glyph in {FONT} ({c!r}, {name}) at character {i + 1}"
+    return ""
+
+
+def drawable(text) -> str:
+    """``text`` with every character the PDF cannot draw (:func:`undrawable`) written as its
+    escape (``\\u65e5``, ``\\udce9``): a file's name is shown whole, never with a glyph
+    lost."""
+    out = []
+    for c in str(text):
+        if undrawable(c):
+            out.append(c.encode("unicode_escape").decode("ascii"))
+        else:
+            out.append(c)
+    return "".join(out)
+
+
+def _register_fonts() -> None:
+    """Register :data:`FONT`'s faces with reportlab (once) as one family."""
+    from reportlab.pdfbase import pdfmetrics
+    from reportlab.pdfbase.ttfonts import TTFont
+
+    if FONT in pdfmetrics.getRegisteredFontNames():
+        return
+    for face, name in _FACES.items():
+        pdfmetrics.registerFont(TTFont(name, str(_font_file(face))))
+    pdfmetrics.registerFontFamily(
+        FONT,
+        normal=FONT,
+        bold=_FACES["-Bold"],
+        italic=_FACES["-Oblique"],
+        boldItalic=_FACES["-BoldOblique"],
+    )
+
 
 #: The colour of each verdict on the record's first page.
 _VERDICT_COLOURS = {
@@ -33,26 +111,37 @@ class _Flowables:
         from reportlab.lib import colors
         from reportlab.lib.styles import ParagraphStyle, getSampleStyleSheet
 
+        _register_fonts()
         self.colors = colors
         self.styles = getSampleStyleSheet()
+        for style in self.styles.byName.values():  # every text style in DejaVu Sans's faces
+            if not hasattr(style, "fontName"):
+                continue
+            bold = "Bold" in style.fontName
+            oblique = "Oblique" in style.fontName or "Italic" in style.fontName
+            face = ("Bold" if bold else "") + ("Oblique" if oblique else "")
+            style.fontName = _FACES[f"-{face}" if face else ""]
         self.body = ParagraphStyle("body", parent=self.styles["BodyText"], fontSize=9, leading=11.5)
         self.small = ParagraphStyle("small", parent=self.body, fontSize=7.5, leading=9.5)
         self.head = self.styles["Heading3"]
 
     def p(self, text, style=None):
-        """A paragraph of ``text``, escaped (a file's name is text, not markup)."""
+        """A paragraph of ``text``, escaped (a file's name is text, not markup) and drawable
+        (:func:`drawable`)."""
         from xml.sax.saxutils import escape
 
         from reportlab.platypus import Paragraph
 
-        return Paragraph(escape(str(text)), style or self.body)
+        return Paragraph(escape(drawable(text)), style or self.body)
 
     def table(self, rows, widths, header=True):
         """A gridded table, its first row shaded when it is a ``header``."""
         from reportlab.platypus import Table, TableStyle
 
+        rows = [[drawable(c) if isinstance(c, str) else c for c in row] for row in rows]
         t = Table(rows, colWidths=widths, hAlign="LEFT")
         style = [
+            ("FONTNAME", (0, 0), (-1, -1), FONT),
             ("FONTSIZE", (0, 0), (-1, -1), 8.5),
             ("VALIGN", (0, 0), (-1, -1), "TOP"),
             ("GRID", (0, 0), (-1, -1), 0.4, self.colors.grey),
@@ -144,6 +233,7 @@ def _signature_table(f: _Flowables):
         hAlign="LEFT",
         style=TableStyle(
             [
+                ("FONTNAME", (0, 0), (-1, -1), FONT),
                 ("FONTSIZE", (0, 0), (-1, -1), 8.5),
                 ("GRID", (0, 0), (-1, -1), 0.4, f.colors.grey),
                 ("BACKGROUND", (0, 0), (-1, 0), grey),
@@ -173,7 +263,7 @@ def _measurement_and_phantom(data: dict, f: _Flowables) -> list:
                         ["independent of the robot", "yes" if data["independent"] else "NO"],
                         ["cycles judged", str(data["cycles_judged"])],
                     ],
-                    [40 * mm, 130 * mm],
+                    [44 * mm, 126 * mm],
                     header=False,
                 ),
             ]
@@ -190,7 +280,7 @@ def _measurement_and_phantom(data: dict, f: _Flowables) -> list:
                         ["notes", p(data["notes"] or "-", small)],
                         ["software", p(software, small)],
                     ],
-                    [40 * mm, 130 * mm],
+                    [44 * mm, 126 * mm],
                     header=False,
                 ),
             ]
@@ -315,12 +405,14 @@ def record_pdf(path: Path, data: dict, figure: bytes | None) -> None:
     def build(target, total: int | None) -> int:
         def footer(canvas, doc):
             canvas.saveState()
-            canvas.setFont("Helvetica", 7)
+            canvas.setFont(FONT, 7)
             canvas.drawString(
                 15 * mm,
                 8 * mm,
-                f"{data['reference']} / {data['measured_file']} / {data['date']} / "
-                f"{data['verdict']} / page {doc.page} of {total}",
+                drawable(
+                    f"{data['reference']} / {data['measured_file']} / {data['date']} / "
+                    f"{data['verdict']} / page {doc.page} of {total}"
+                ),
             )
             canvas.restoreState()
 
@@ -343,4 +435,4 @@ def record_pdf(path: Path, data: dict, figure: bytes | None) -> None:
     build(str(path), pages)
 
 
-__all__ = ["axis_tables", "record_pdf"]
+__all__ = ["FONT", "axis_tables", "drawable", "record_pdf", "undrawable"]
