@@ -149,8 +149,10 @@ def outliers(x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offset
 
 def outlier_words(found: dict, measured, tolerance, excluded: int = 0) -> str:
     """The verdict line's words on :func:`outliers` ("" when there are none and none were
-    excluded): how many, how far, the verdict the other frames would have, and the option that
-    judges without them; or, ``excluded`` > 0, how many were left out."""
+    excluded): how many, how far, the other frames' RMS (on the clock the outliers helped find:
+    a glitch moves the clock, so the figure is a guide, not the verdict of the rest), and the
+    option that judges without them on their own clock; or, ``excluded`` > 0, how many were left
+    out."""
     if excluded:
         return (
             f"; {excluded} frames excluded as outliers (--exclude-outliers: beyond "
@@ -176,9 +178,9 @@ def outlier_words(found: dict, measured, tolerance, excluded: int = 0) -> str:
         f"; {found['frames']} of {found['samples']} frames compared are outliers (beyond "
         f"{OUTLIER_SIGMAS:g} robust SD and {OUTLIER_TOLERANCES:g}x the tolerance from the "
         f"median error on some axis; up to {far} off it: a marker mis-detected?); the other "
-        f"{found['samples'] - found['frames']} frames: RMS {rms}, "
-        f"{'within' if rest_ok else 'beyond'} the tolerance; --exclude-outliers judges without "
-        "them"
+        f"{found['samples'] - found['frames']} frames, on the clock found with the outliers: "
+        f"RMS {rms}, {'within' if rest_ok else 'beyond'} the tolerance; --exclude-outliers "
+        "judges without them, on a clock found without them"
     )
 
 
