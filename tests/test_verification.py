@@ -602,6 +602,7 @@ def fidelity_of_six():
             "rms_rotation_rad": [0.1],
             "rms_translation_m": [0.2],
             "peak_translation_m": [0.3],
+            "rms": [[0.01, 0.02, 0.03, 0.04, 0.05, 0.06]],
         },
         "rms_rotation_rad": 0.1,
         "peak_rotation_rad": 0.2,
@@ -630,6 +631,7 @@ def test_the_axes_not_measured_are_nan_and_named():
     assert out["rms_translation_m"] == 0.3 and out["peak_translation_m"] == 0.4
     assert np.isnan(out["cycles"]["rms_rotation_rad"]).all()
     assert out["cycles"]["rms_translation_m"] == [0.2]
+    np.testing.assert_array_equal(out["cycles"]["rms"], [nan3 + [0.04, 0.05, 0.06]])
     assert out["lag_s"] == {"X": 0.02}
     assert out["harmonics"] == [{"axis": "X", "k": 1}]
     assert out["measured"] == ["X", "Y", "Z"]

@@ -252,7 +252,8 @@ def _not_measured(fid: dict, measured: np.ndarray, t, x, x_d) -> dict:
     for key in ("rms", "peak", "rms_fraction", "peak_fraction"):
         fid[key] = [math.nan if k in off else v for k, v in enumerate(fid[key])]
     cycles = dict(fid["cycles"])
-    cycles["rms"] = [[math.nan if k in off else v for k, v in enumerate(c)] for c in cycles["rms"]]
+    per_axis = cycles.get("rms", [])  # each cycle's per-axis RMS
+    cycles["rms"] = [[math.nan if k in off else v for k, v in enumerate(c)] for c in per_axis]
     if not np.any(measured[:3]):
         fid["rms_rotation_rad"] = fid["peak_rotation_rad"] = math.nan
         cycles["rms_rotation_rad"] = [math.nan] * len(cycles["rms_rotation_rad"])
