@@ -771,6 +771,28 @@ def test_a_pass_names_what_it_compared_and_its_figures_over_the_window():
     assert j.as_dict()["passed"] is True
 
 
+def test_a_pass_beyond_the_action_level_is_action_on_its_line():
+    """The same PASS (X 50, Y 70, Z 60 um) with an action level of 65 um: Y alone is beyond
+    it, so the verdict is ACTION, its line saying which axis and by how much; at 70 um exactly
+    it stays PASS; a FAIL stays FAIL whatever the action level."""
+    x = noisy(X_D, 5e-5) * np.r_[np.nan, np.nan, np.nan, 1, 1, 1]
+    ver = verification(x, [math.nan] * 3 + [5e-5, 7e-5, 6e-5])
+    j = judge(ver, TOLERANCE, (6.5e-5, math.radians(0.05)))
+    assert j.passed and j.verdict == "ACTION" and j.action == {"Y": 7e-5}
+    assert j.action_level == (6.5e-5, math.radians(0.05))
+    assert j.line == (
+        "ACTION: m.csv (X, Y, Z; each axis's offset removed) against harmonics: RMS error per "
+        "axis within 0.1 mm | 0.1 deg over t = 6-34 s (largest: Y 70 um, rotation not "
+        "measured); latency 60 ms within 500 ms; beyond the action level 65 um | 873 urad: Y 70 "
+        "um (within the tolerance: to be looked at before it fails)"
+    )
+    at = judge(ver, TOLERANCE, (7e-5, math.radians(0.05)))
+    assert at.verdict == "PASS" and at.action == {} and at.line.startswith("PASS: ")
+    failing = verification(x, [math.nan] * 3 + [5e-5, 1.1e-4, 6e-5])
+    f = judge(failing, TOLERANCE, (6.5e-5, math.radians(0.05)))
+    assert f.verdict == "FAIL" and f.action == {} and "action level" not in f.line
+
+
 def test_an_axis_beyond_the_tolerance_fails_with_its_causes():
     x = CENTRE + 1.3 * (X_D - CENTRE)
     x[:, :3] = np.nan
@@ -1039,3 +1061,41 @@ def test_the_exit_status_is_the_worst_verdicts():
     assert exit_status(["PASS", "ACTION"]) == 4
     assert exit_status(["ACTION", "CANNOT JUDGE", "PASS"]) == 3
     assert exit_status(["ACTION", "CANNOT JUDGE", "FAIL"]) == 2
+
+
+def test_the_action_level_is_checked_against_the_tolerance_at_its_edges():
+    """Equal to the tolerance is allowed on both kinds of axis; zero, negative, NaN or beyond
+    it is refused, naming the option, the kind of axis, the bound and the value."""
+    from stewart_drake.base.errors import InvalidConfigError
+    from stewart_drake.organ_motion.measured_verdict import check_action_level
+
+    tol = (1e-4, math.radians(0.1))
+    check_action_level(tol, tol)
+    check_action_level((1e-9, 1e-9), tol)
+    cases = [
+        ((0.0, 1e-3), "its length must be above 0 and at most the --tolerance's 0.1 mm, got 0 um"),
+        ((1.0001e-4, 1e-3), "its length must be above 0 and at most the --tolerance's 0.1 mm"),
+        ((-1e-5, 1e-3), "its length must be above 0"),
+        ((math.nan, 1e-3), "its length must be above 0"),
+        ((5e-5, 0.0), "its angle must be above 0 and at most the --tolerance's 0.1 deg, got 0 "),
+        ((5e-5, math.radians(0.1001)), "its angle must be above 0 and at most the --tolerance's"),
+    ]
+    for action, words in cases:
+        with pytest.raises(InvalidConfigError, match="^--action-level: ") as err:
+            check_action_level(action, tol)
+        assert words in str(err.value), (action, str(err.value))
+
+
+def test_the_action_words_name_each_axis_beyond_the_level():
+    """None beyond: nothing said. Beyond: the level in both units, then each axis with its RMS
+    error in its own unit, in the order given, and what ACTION means."""
+    from stewart_drake.organ_motion.measured_verdict import action_words
+
+    level = (7e-5, math.radians(0.07))
+    assert action_words({}, level) == ""
+    assert action_words({"X": 7.05e-5}, level) == (
+        "; beyond the action level 70 um | 0.07 deg: X 70.5 um (within the tolerance: to be "
+        "looked at before it fails)"
+    )
+    both = action_words({"theta": math.radians(0.08), "Z": 9e-5}, level)
+    assert both.startswith("; beyond the action level 70 um | 0.07 deg: theta 0.08 deg, Z 90 um (")
