@@ -110,7 +110,6 @@ ALLOWED = {
     # A QA record's files, created empty and exclusively before they are written (nothing read),
     # and the PNG verify has just written, measured for the record's page.
     ("organ_motion/qa_record.py", "_exclusive", "os.open"),
-    ("organ_motion/qa_record.py", "_record_story", "PILImage.open"),
 }
 
 

@@ -313,15 +313,21 @@ def test_the_pair_s_exit_status_is_the_worst_of_its_three_verdicts(tmp_path, cap
 
 
 @pytest.mark.parametrize(
-    "option", [["--record"], ["--operator", "A. Physicist"], ["--action-level", "0.5mm,0.5deg"]]
+    "option, words",
+    [
+        (["--record"], "--record records one motion's verdict, and a pair has three"),
+        (["--operator", "A"], "--operator records one motion's verdict, and a pair has three"),
+        (["--action-level", "0.5mm,0.5deg"], "--action-level grades one motion's verdict, and a"),
+    ],
 )
-def test_a_pair_refuses_the_records_options_before_any_work(tmp_path, capsys, option):
-    """A record is of one motion's verdict; a pair has three: --record and the options it takes
-    are refused in one line, nothing written. Was: no record, and not a word."""
+def test_a_pair_refuses_the_records_options_before_any_work(tmp_path, capsys, option, words):
+    """A record is of one motion's verdict, as is an action level; a pair has three: --record,
+    the options it takes and --action-level are refused in one line, nothing written. Was: no
+    record, and not a word."""
     code, figures = run(tmp_path, *pair_files(tmp_path), *option)
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert code == 2 and figures is None and not (tmp_path / "out").exists()
-    assert f"{option[0]} records one motion's verdict, and a pair has three" in err, err
+    assert words in err, err
 
 
 @pytest.mark.parametrize(

@@ -215,6 +215,11 @@ def _check_pair_options(args) -> None:
             "--measured-pauses judges one motion in segments, and a pair's relative latency "
             "needs both unbroken: leave --surrogate out and verify each motion alone"
         )
+    if args.action_level is not None:
+        raise InvalidConfigError(
+            "--action-level grades one motion's verdict, and a pair has three: leave "
+            "--surrogate out and verify each motion alone with --action-level"
+        )
     record = record_options(args)
     if record:
         raise InvalidConfigError(

@@ -380,10 +380,9 @@ def _record_story(data: dict, figure: bytes | None, f: _Flowables) -> list:
         *_details(data, f),
     ]
     if figure is not None:
-        from PIL import Image as PILImage
+        from reportlab.lib.utils import ImageReader
 
-        with PILImage.open(io.BytesIO(figure)) as im:
-            w, h = im.size
+        w, h = ImageReader(io.BytesIO(figure)).getSize()  # the plots this record drew
         width = 180 * mm
         height = min(width * h / w, 255 * mm)
         story += [
