@@ -572,6 +572,23 @@ def test_a_turned_motion_is_named_with_its_turn():
     assert not any("turned" in c for c in found)
 
 
+@pytest.mark.parametrize("angle, named", [(135.0, True), (180.0, False)])
+def test_a_motion_along_one_line_turned_beyond_60_deg_is_named_beside_its_axes(angle, named):
+    """The motion along X (MOTION) turned about Z: at 135 deg X runs the wrong way and Y moves
+    where the reference holds still; each axis's words name neither the whole, so the turn is
+    named beside them. At 180 deg X reversed is the whole story (nothing else moves): the turn
+    is not repeated. Was: the 135 deg turn went unnamed (X's reversal taken for all of it)."""
+    x = turned(X_D, angle, (0.0, 0.0, 1.0))
+    moving = np.array([False] * 3 + [True, False, False])
+    causes, _ = causes_of(T, x, X_D, XYZ, moving, TOLERANCE, True, MOTION)
+    assert any(c.startswith("X runs the wrong way") for c in causes), causes
+    assert any(c.startswith("Y moves") for c in causes) == named
+    turn = [c for c in causes if c.startswith("the measured motion is turned ")]
+    assert bool(turn) == named, causes
+    if named:
+        assert float(turn[0].split("turned ")[1].split(" deg")[0]) == pytest.approx(135, abs=0.5)
+
+
 @pytest.mark.parametrize(
     "angle, named",
     [

@@ -263,6 +263,11 @@ def _angle(fit) -> float:
     return float(fit[0].magnitude())
 
 
+#: How near a quarter or a half turn (deg) a turn of the measured axes is one: its axes' own
+#: words (swapped, reversed) say all of it, and the turn is not named again.
+QUARTER_SLACK_DEG = 10.0
+
+
 def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[str | None, float]:
     """(the cause, the turn, rad) when the measured translations (n, 6) are the reference's
     x_d (n, 6) turned (a tracker whose axes are not the base frame's, or a whole phantom set
@@ -490,11 +495,18 @@ def causes_of(
                 + " (the phantom set down off its place or tilted, or a registration out of "
                 "date)"
             )
-    # A turn beyond MAX_TURN_RAD, named after each axis's words unless they say it already:
-    # every moving axis reversed (a half turn of a motion along one line) or an axis swapped.
-    said = any("axes swapped" in c for c in causes) or all(
+    # A turn beyond MAX_TURN_RAD, named after each axis's words unless they say it already: a
+    # quarter or half turn (within QUARTER_SLACK_DEG) whose words are an axis swapped, or every
+    # moving axis reversed with nothing moving where the reference holds still. A turn between
+    # (135 deg) reverses one axis and moves another: only the turn names the whole.
+    degrees = math.degrees(angle)
+    square = min(abs(degrees - 90.0), abs(degrees - 180.0)) <= QUARTER_SLACK_DEG
+    reversed_all = all(
         any(c.startswith(f"{AXES[k]} runs the wrong way") for c in causes) for k in moving_seen
     )
+    stray = any("where the reference holds still" in c for c in causes)
+    swapped = any("axes swapped" in c for c in causes)
+    said = square and (swapped or (reversed_all and not stray))
     if turned is not None and not said:
         causes.append(turned)
     return causes, follows
