@@ -165,11 +165,6 @@ def test_every_margin_is_reported_and_the_binding_one_is_the_smallest(task):
     e = evaluate(reference_design(), task, lazy=False)
     assert not lazy.feasible and "clearance" not in lazy.margins  # it misses one already
     assert lazy.binding[0] == "continuous_torque"  # 1.5 kg held take 0.37 N m > 0.351
-    # Met only within 80 % of the continuous torque: a motor never runs at its rating all day.
-    f = e.figures
-    assert e.margins["continuous_torque"] == pytest.approx(
-        1.0 - f["rms_torque_Nm"] / (0.8 * f["motor_continuous_Nm"]), rel=1e-12
-    )
     assert set(e.margins) == set(MARGINS)
     assert {k: e.margins[k] for k in lazy.margins} == lazy.margins
     name, margin = e.binding
