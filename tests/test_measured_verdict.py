@@ -1045,7 +1045,7 @@ def test_each_axis_is_graded_at_the_edges_of_its_tolerance_and_action_level():
     """An axis's RMS error at the tolerance exactly PASSes, a hair beyond FAILs; at the action
     level exactly it PASSes, a hair beyond is ACTION; rotations against the angle, translations
     against the length; an axis not measured is not graded."""
-    from stewart_drake.organ_motion.measured_verdict import axis_levels
+    from stewart_drake.organ_motion.verdict_levels import axis_levels
 
     tol, act = (1e-4, 2e-3), (7e-5, 1e-3)
     measured = np.array([False, True, True, True, True, False])
@@ -1084,7 +1084,7 @@ def test_the_action_level_is_checked_against_the_tolerance_at_its_edges():
     """Equal to the tolerance is allowed on both kinds of axis; zero, negative, NaN or beyond
     it is refused, naming the option, the kind of axis, the bound and the value."""
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.organ_motion.measured_verdict import check_action_level
+    from stewart_drake.organ_motion.verdict_levels import check_action_level
 
     tol = (1e-4, math.radians(0.1))
     check_action_level(tol, tol)
@@ -1106,7 +1106,7 @@ def test_the_action_level_is_checked_against_the_tolerance_at_its_edges():
 def test_the_action_words_name_each_axis_beyond_the_level():
     """None beyond: nothing said. Beyond: the level in both units, then each axis with its RMS
     error in its own unit, in the order given, and what ACTION means."""
-    from stewart_drake.organ_motion.measured_verdict import action_words
+    from stewart_drake.organ_motion.verdict_levels import action_words
 
     level = (7e-5, math.radians(0.07))
     assert action_words({}, level) == ""

@@ -8,9 +8,9 @@ frames, one constant per axis), against the reference: PASS when every measured 
 over the window is within the tolerance and, with the clocks' relation known, the latency
 within its bound. With an action level (``--action-level``, TG-142's; pylinac's
 ``action_tolerance``), a PASS with an axis's RMS error beyond it is ACTION instead: within the
-tolerance, to be looked at before it fails (:func:`axis_levels`). A FAIL names its causes,
-found from the aligned motion over the window, per measured axis k with the reference's motion
-r_k and the measured q_k, each less its mean:
+tolerance, to be looked at before it fails (:func:`~.verdict_levels.axis_levels`). A FAIL names
+its causes, found from the aligned motion over the window, per measured axis k with the
+reference's motion r_k and the measured q_k, each less its mean:
 
 - the phantom at rest: every measured axis along which the reference moves moved less than
   :data:`AT_REST_SHARE` of it (RMS);
@@ -64,6 +64,7 @@ import numpy as np
 
 from ..base.signals import PERIOD_POWER_SHARE, centred, dominant_period
 from .fidelity import AXES, format_angle, format_length, format_window
+from .verdict_levels import action_words, axis_levels
 from .verdict_notes import (
     outlier_words,
     pause_words,
@@ -151,57 +152,6 @@ class Judgement:
             "action_level": None if self.action_level is None else list(self.action_level),
             "action": self.action,
         }
-
-
-def axis_levels(rms, measured, tolerance, action_level=None) -> dict:
-    """{axis: "PASS", "ACTION" or "FAIL"} per measured axis: FAIL when its RMS error is beyond
-    the tolerance, ACTION when within it but beyond the action level (when given), else PASS.
-
-    Args:
-        rms: (6,) RMS error per axis, rad and m. measured: (6,) bool. tolerance, action_level:
-            (m, rad); action_level may be None.
-    """
-    tol = axis_tolerances(tolerance)
-    act = None if action_level is None else axis_tolerances(action_level)
-    out = {}
-    for k in np.flatnonzero(measured):
-        if not rms[k] <= tol[k]:
-            out[AXES[k]] = "FAIL"
-        elif act is not None and rms[k] > act[k]:
-            out[AXES[k]] = "ACTION"
-        else:
-            out[AXES[k]] = "PASS"
-    return out
-
-
-def check_action_level(action_level, tolerance) -> None:
-    """Refuse an action level not within (0, tolerance] on both kinds of axis.
-
-    Raises:
-        InvalidConfigError: naming ``--action-level`` and the bound.
-    """
-    from ..base.errors import InvalidConfigError
-
-    for value, limit, what, shown in zip(
-        action_level, tolerance, ("length", "angle"), (format_length, format_angle)
-    ):
-        if not 0.0 < value <= limit:
-            raise InvalidConfigError(
-                f"--action-level: its {what} must be above 0 and at most the --tolerance's "
-                f"{shown(limit)}, got {shown(value)}"
-            )
-
-
-def action_words(action: dict, action_level) -> str:
-    """The verdict line's note on the axes beyond the action level, or "" without any."""
-    if not action:
-        return ""
-    axes = ", ".join(f"{a} {axis_amount(AXES.index(a), v)}" for a, v in action.items())
-    return (
-        f"; beyond the action level {format_length(action_level[0])} | "
-        f"{format_angle(action_level[1])}: {axes} (within the tolerance: to be looked at "
-        "before it fails)"
-    )
 
 
 def _signed(k: int, v: float) -> str:
@@ -633,10 +583,7 @@ __all__ = [
     "PERIOD_SHARE",
     "EDGE_S",
     "Judgement",
-    "action_words",
     "axis_figures",
-    "axis_levels",
-    "check_action_level",
     "causes_of",
     "compared_words",
     "judge",

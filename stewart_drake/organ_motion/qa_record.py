@@ -18,7 +18,7 @@ The verdict is the judgement's own (:attr:`~.measured_verdict.Judgement.verdict`
 terminal, the report, the JSON and every page say: per axis an RMS error beyond the tolerance
 FAILs; one within it but beyond the action level is ACTION (within tolerance, to be looked at
 before it fails: TG-142's action level, pylinac's ``action_tolerance``;
-:func:`~.measured_verdict.axis_levels`); CANNOT JUDGE when the judgement cannot
+:func:`~.verdict_levels.axis_levels`); CANNOT JUDGE when the judgement cannot
 (:func:`~.verdict_sensitivity.motion_unseen`).
 
 The PDF's pages (:mod:`.qa_record_pdf`): the verdict with its per-axis tables (one unit per
@@ -48,8 +48,8 @@ import numpy as np
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
 from .fidelity import AXES
-from .measured_verdict import axis_levels as _axis_levels
 from .qa_record_pdf import FONT, record_pdf, undrawable
+from .verdict_levels import axis_levels as _axis_levels
 
 #: The record's JSON layout; a reader checks it before reading the values.
 RECORD_SCHEMA = "stewart-drake/verify-record/1"
@@ -151,7 +151,7 @@ def software_versions() -> dict:
 
 def axis_levels(ver, tolerance) -> dict:
     """{axis: "PASS", "ACTION" or "FAIL"} per measured axis of ``ver`` at ``tolerance`` and
-    the judgement's action level (:func:`~.measured_verdict.axis_levels`); "CANNOT JUDGE" for
+    the judgement's action level (:func:`~.verdict_levels.axis_levels`); "CANNOT JUDGE" for
     every axis within the tolerance when the judgement cannot judge (an axis's PASS would say
     what the verdict refuses to)."""
     rms = np.asarray(ver.fidelity["rms"], dtype=float)

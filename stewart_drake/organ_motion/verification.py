@@ -318,7 +318,7 @@ def verify(
             they are left out of the file and it is judged again, its line saying how many;
             without, the line names them and the verdict of the rest.
         action_level: (m, rad) the RMS error per axis beyond which a PASS is ACTION
-            (:func:`~.measured_verdict.axis_levels`), or None.
+            (:func:`~.verdict_levels.axis_levels`), or None.
     Returns:
         :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
