@@ -297,6 +297,7 @@ def cmd_verify(args) -> int:
             from dataclasses import replace
 
             from ..organ_motion.qa_record import write_record
+            from .record_words import phantom_words
 
             inputs = _record_inputs(args, m.path)
             identities = tuple(held[str(p)] for p in inputs if str(p) in held)
@@ -308,7 +309,7 @@ def cmd_verify(args) -> int:
                     context,
                     inputs=tuple(inputs),
                     identities=identities,
-                    scenario=_phantom_words(args, m.kind),
+                    scenario=phantom_words(args, m.kind),
                 ),
                 stem,
             )
@@ -358,7 +359,7 @@ def _action_level(args, tolerance):
     """
     from ..base.errors import InvalidConfigError
     from ..organ_motion.fidelity import parse_tolerance
-    from ..organ_motion.measured_verdict import check_action_level
+    from ..organ_motion.verdict_levels import check_action_level
 
     if args.action_level is None:
         return None
@@ -382,6 +383,7 @@ def _record_context(args, tolerance):
     """
     from ..base.errors import InvalidConfigError
     from ..organ_motion.qa_record import RecordContext, _reportlab
+    from .record_words import reference_words
 
     given = record_options(args)
     if not args.record:
@@ -405,38 +407,6 @@ def _record_context(args, tolerance):
     context.check()
     _reportlab()
     return context
-
-
-def _phantom_words(args, kind: str) -> str:
-    """The phantom a record names: for the robot's encoder log the robot that wrote it (its
-    ``--scenario``, whose forward kinematics read it); for a tracker's file the ``--scenario``
-    given, or "" when the default stands (it names no phantom: ``--phantom-serial`` does)."""
-    from ..organ_motion import SCENARIO
-
-    if kind in ("encoders", "carriage"):
-        return f"{args.scenario} (the robot whose encoder log this is: --scenario)"
-    return "" if str(args.scenario) == SCENARIO else str(args.scenario)
-
-
-def reference_words(args) -> str:
-    """The reference a verdict judges against, as the command line chose it: the motion (or
-    trace file) with every ``--param``, ``--add`` and trace option given, e.g. ``breathing
-    --param tilt=2deg``; the defaults stand for the rest."""
-    import argparse
-
-    from ..execution.trace_options import add_trace_arguments
-
-    words = [str(args.motion)]
-    for option in ("param", "add"):
-        for value in getattr(args, option, None) or ():
-            words.append(f"--{option} {value}")
-    defaults = argparse.ArgumentParser()
-    add_trace_arguments(defaults)
-    for name, default in vars(defaults.parse_args([])).items():
-        value = getattr(args, name, default)
-        if value != default:
-            words.append(f"--{name.replace('_', '-')} {value}")
-    return " ".join(words)
 
 
 def _identities(args, context) -> dict:
