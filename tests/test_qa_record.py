@@ -343,7 +343,7 @@ def test_the_reference_is_recorded_as_the_command_line_chose_it():
     """The motion with every --param and --add given, and the trace options that differ from
     their defaults, in the order given; nothing else."""
     from stewart_drake.cli.registry import build_parser
-    from stewart_drake.live.record_words import reference_words
+    from stewart_drake.live.verify_record_options import reference_words
 
     parser = build_parser()
     args = parser.parse_args(

@@ -297,7 +297,7 @@ def cmd_verify(args) -> int:
             from dataclasses import replace
 
             from ..organ_motion.qa_record import write_record
-            from .record_words import phantom_words
+            from .verify_record_options import phantom_words
 
             inputs = _record_inputs(args, m.path)
             identities = tuple(held[str(p)] for p in inputs if str(p) in held)
@@ -383,7 +383,7 @@ def _record_context(args, tolerance):
     """
     from ..base.errors import InvalidConfigError
     from ..organ_motion.qa_record import RecordContext, _reportlab
-    from .record_words import reference_words
+    from .verify_record_options import reference_words
 
     given = record_options(args)
     if not args.record:
