@@ -15,12 +15,12 @@ from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.live.pair_judgement import (
     MIN_INSIDE,
     RELATIVE_SEARCH_S,
-    _window,
     check_one_clock,
     judge_relative,
     search_half_width,
     span_mask,
 )
+from stewart_drake.organ_motion.verification import judged_window
 
 NAMES = ("a.csv", "b.csv")
 HEAD = "a.csv (internal) against b.csv (surrogate) on one clock: "
@@ -168,7 +168,7 @@ def test_a_window_holds_its_ends_and_fills_an_axis_not_measured_with_the_referen
     ver = SimpleNamespace(
         result=SimpleNamespace(t=t, x=x, x_d=x_d), fidelity={"window_s": (1.0, 4.0)}
     )
-    tw, xw, xdw = _window(ver)
+    tw, xw, xdw = judged_window(ver)
     np.testing.assert_array_equal(tw, [1.0, 2.0, 3.0, 4.0])
     np.testing.assert_array_equal(xdw, x_d[1:5])
     want = x_d[1:5].copy()

@@ -269,15 +269,6 @@ def relative_shift(reference, measured, around_s: float, half_width_s: float) ->
 # -- whether a motion follows its reference --------------------------------------------------------
 
 
-def _window(ver) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(t, x, x_d) of a verification over its window: the reference's times (n,) s, the
-    measured poses (n, 6) (the axes not measured the reference's) and the reference's (n, 6)."""
-    t, x, x_d = ver.result.t, ver.result.x, ver.result.x_d
-    w0, w1 = ver.fidelity["window_s"]
-    m = (t >= w0 - 1e-9) & (t <= w1 + 1e-9)
-    return t[m], np.where(np.isfinite(x[m]), x[m], x_d[m]), x_d[m]
-
-
 def _at_shift(reference, measured, d: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, x, x_d) of ``measured`` put on ``reference``'s clock by the shift d (s), over the
     samples inside the reference's span (:func:`span_mask`), each measured axis less its mean
@@ -430,11 +421,11 @@ def verify_pair(
     half = search_half_width(surrogate_reference, max_relative_latency_s)
     d_s = relative_shift(surrogate_reference, surrogate_measured, d_i, half)
     tau = d_s - d_i
-    t, x, x_d = _window(internal)
+    t, x, x_d = verification.judged_window(internal)
     why_internal = why_not_following(internal_reference, t, x, x_d, internal_measured.measured)
     # On the internal's clock, unless the internal's shift means nothing: then on its own.
     if why_internal:
-        t, x, x_d = _window(surrogate)
+        t, x, x_d = verification.judged_window(surrogate)
     else:
         t, x, x_d = _at_shift(surrogate_reference, surrogate_measured, d_s)
     why_surrogate = why_not_following(surrogate_reference, t, x, x_d, surrogate_measured.measured)

@@ -46,15 +46,6 @@ def cycle_rms(ver) -> tuple[np.ndarray, np.ndarray]:
     return starts, np.asarray(cyc.get("rms", []), dtype=float).reshape(-1, 6)
 
 
-def _window(ver):
-    """(t, x, x_d) of the aligned motion within the window judged; x's axes not measured are
-    the reference's."""
-    t, x, x_d = ver.result.t, ver.result.x, ver.result.x_d
-    w0, w1 = ver.fidelity["window_s"]
-    m = (t >= w0 - 1e-9) & (t <= w1 + 1e-9)
-    return t[m], np.where(np.isfinite(x[m]), x[m], x_d[m]), x_d[m]
-
-
 def _legend_outside(ax) -> None:
     """The axes' legend to the right of its plotting area, never over its data."""
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
@@ -146,12 +137,14 @@ def record_figure(ver, tolerance, action_level=None) -> bytes:
     """
     import matplotlib
 
+    from .verification import judged_window
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     measured = np.asarray(ver.measured.measured, dtype=bool)
     axes_k = [int(k) for k in np.flatnonzero(measured)]
-    t, x, x_d = _window(ver)
+    t, x, x_d = judged_window(ver)
     starts, rms = cycle_rms(ver)
     rows = 2 * len(axes_k) + 1
     fig, axs = plt.subplots(rows, 1, figsize=(WIDTH_IN, 1.3 * rows + 0.2), squeeze=False)

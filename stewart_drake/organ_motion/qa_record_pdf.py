@@ -56,11 +56,13 @@ def undrawable(text: str) -> str:
         if 0xD800 <= code <= 0xDFFF:
             byte = f"0x{code - 0xDC00:02X}" if code >= 0xDC80 else f"U+{code:04X}"
             return f"a byte that is not UTF-8 ({byte}) at character {i + 1}"
-        name = unicodedata.name(c, f"U+{code:04X}")
         if unicodedata.bidirectional(c) in ("R", "AL"):
-            return f"a right-to-left character ({c!r}, {name}) at character {i + 1}"
-        if code not in glyphs and unicodedata.category(c)[0] != "C":
-            return f"a character of no glyph in {FONT} ({c!r}, {name}) at character {i + 1}"
+            what = "a right-to-left character"
+        elif code not in glyphs and unicodedata.category(c)[0] != "C":
+            what = f"a character of no glyph in {FONT}"
+        else:
+            continue
+        return f"{what} ({c!r}, {unicodedata.name(c, f'U+{code:04X}')}) at character {i + 1}"
     return ""
 
 

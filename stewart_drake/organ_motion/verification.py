@@ -240,6 +240,16 @@ def _samples(
     ), found
 
 
+def judged_window(ver) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, x, x_d) of a :class:`Verification` over the window it judged: the reference's times
+    (n,) s, the measured poses (n, 6) (the axes not measured the reference's) and the
+    reference's (n, 6)."""
+    t, x, x_d = ver.result.t, ver.result.x, ver.result.x_d
+    w0, w1 = ver.fidelity["window_s"]
+    m = (t >= w0 - 1e-9) & (t <= w1 + 1e-9)
+    return t[m], np.where(np.isfinite(x[m]), x[m], x_d[m]), x_d[m]
+
+
 def _not_measured(fid: dict, measured: np.ndarray, t, x, x_d) -> dict:
     """``fid`` with the figures of the axes not measured NaN (their harmonics and lags left out;
     the lag of the whole motion from the measured axes; the 3-D figures of rotation or
@@ -560,6 +570,7 @@ __all__ = [
     "MAX_REFERENCE_TIME_S",
     "MeasuredRun",
     "Verification",
+    "judged_window",
     "seconds",
     "verify",
 ]
