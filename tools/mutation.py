@@ -96,7 +96,11 @@ MODULES = {
         "tests/test_predictors.py",
     ),
     "stewart_drake/organ_motion/measured_verdict.py": ("tests/test_measured_verdict.py",),
-    "stewart_drake/organ_motion/verdict_notes.py": ("tests/test_verification.py",),
+    "stewart_drake/organ_motion/verdict_notes.py": (
+        "tests/test_verdict_notes.py",
+        "tests/test_verification.py",
+    ),
+    "stewart_drake/organ_motion/verdict_levels.py": ("tests/test_measured_verdict.py",),
     "stewart_drake/organ_motion/verdict_sensitivity.py": (
         "tests/test_measured_verdict.py",
         "tests/test_verify_discrimination.py",

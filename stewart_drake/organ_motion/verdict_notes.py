@@ -125,8 +125,9 @@ def outliers(x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offset
             the frames remove each axis's mean error (``--frame axes``): the other frames'
             RMS is then about their own mean, as a verdict without the outliers takes it.
     Returns:
-        {"frames": how many, "samples": n, "largest": (6,) the largest |error - median| among
-        them, "rest_rms": (6,) the RMS error of the other frames (NaN not measured), "mask":
+        {"frames": how many, "samples": n, "largest": (6,) the largest |error - median| beyond
+        its axis's bound (0 on an axis where no frame is: an outlier on Y is no reason to name
+        its X), "rest_rms": (6,) the RMS error of the other frames (NaN not measured), "mask":
         (n,) which frames}.
     """
     measured = np.asarray(measured, dtype=bool)
@@ -134,14 +135,15 @@ def outliers(x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offset
     centred = np.abs(e - np.median(e, axis=0))
     sigma = 1.4826 * np.median(centred, axis=0)
     bound = np.maximum(OUTLIER_SIGMAS * sigma, OUTLIER_TOLERANCES * axis_tolerances(tolerance))
-    flagged = np.any((centred > bound) & measured, axis=1)
+    beyond = (centred > bound) & measured
+    flagged = np.any(beyond, axis=1)
     rest = e[~flagged] if np.any(~flagged) else e
     if removes_offsets:
         rest = rest - rest.mean(axis=0)
     return {
         "frames": int(flagged.sum()),
         "samples": int(len(e)),
-        "largest": np.where(measured, centred[flagged].max(axis=0, initial=0.0), 0.0),
+        "largest": np.where(beyond, centred, 0.0).max(axis=0, initial=0.0),
         "rest_rms": np.where(measured, np.sqrt(np.mean(rest**2, axis=0)), np.nan),
         "mask": flagged,
     }
