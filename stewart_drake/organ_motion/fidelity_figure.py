@@ -86,64 +86,102 @@ def _plot_poses(axes, moving: list, r, window, label: str = "achieved") -> None:
             ax.set_title(f"{AXES[k]}: {NOT_MEASURED}", fontsize=8, loc="left")
         ax.set_ylabel(f"{AXES[k]} [{unit}]")
         ax.axvspan(w0, w1, color="0.9", zorder=0)
-        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        _legend(ax)
         ax.grid(alpha=0.3)
 
 
-def _error_norm(e: np.ndarray) -> np.ndarray:
-    """(n,) the norm of the errors e (n, 3) over the axes measured (all, in a simulation; the
-    columns not all NaN), NaN when none is."""
-    seen = np.isfinite(e).any(axis=0)
-    if not seen.any():
-        return np.full(len(e), np.nan)
-    return np.linalg.norm(e[:, seen], axis=1)
+#: The colour of each axis's error in the report's error rows (phi, theta, psi, X, Y, Z).
+AXIS_COLOURS = ("C0", "C1", "C2", "C0", "C1", "C2")
 
 
-def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
-    """Draw the norm of the translation error (um) and of the rotation error (urad) over time,
-    each on its own axis against its own tolerance, the measured window shaded."""
+#: The window of the running RMS the report's error rows draw, s (a breath's part: short enough
+#: to show where an error grows, long enough to be an RMS like the one the tolerance bounds).
+RUNNING_RMS_S = 1.0
+
+
+def running_rms(t: np.ndarray, e: np.ndarray, width_s: float = RUNNING_RMS_S) -> np.ndarray:
+    """(n,) the RMS of ``e`` (n,) over the samples within ``width_s`` / 2 of each sample's time
+    ``t`` (n,) s, increasing; NaN samples left out (NaN where all are)."""
+    e = np.asarray(e, dtype=float)
+    seen = np.isfinite(e)
+    c2 = np.concatenate([[0.0], np.cumsum(np.where(seen, e * e, 0.0))])
+    cn = np.concatenate([[0], np.cumsum(seen)])
+    lo = np.searchsorted(t, t - width_s / 2, side="left")
+    hi = np.searchsorted(t, t + width_s / 2, side="right")
+    n = cn[hi] - cn[lo]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.sqrt(np.maximum(c2[hi] - c2[lo], 0.0) / n), np.nan)
+
+
+def _plot_error(axes, r, fid: dict, tolerance: tuple[float, float]) -> None:
+    """Draw each translation axis's error (um) and each rotation axis's (urad) over time as the
+    verdict judges them, per axis: its running RMS over :data:`RUNNING_RMS_S` (solid; its RMS
+    over the judged window in the legend) over its samples' size (faint), against the
+    per-axis RMS tolerance (dotted); never a norm of three axes, which is larger than each axis
+    and no tolerance applies to. The judged window shaded, legends right of the data."""
     t = r.t
-    e = r.x[:, :6] - r.x_d[:, :6]
-    w0, w1 = window
-    for ax, part, tol, color, what, unit, scale in (
-        (axes[0], slice(3, 6), tolerance[0], "C3", "translation", "um", 1e6),
-        (axes[1], slice(0, 3), tolerance[1], "C2", "rotation", "urad", 1e6),
+    e = np.abs(r.x[:, :6] - r.x_d[:, :6])
+    w0, w1 = fid["window_s"]
+    rms = np.asarray(fid["rms"], dtype=float)
+    for ax, part, tol, what, unit in (
+        (axes[0], range(3, 6), tolerance[0], "translation", "um"),
+        (axes[1], range(3), tolerance[1], "rotation", "urad"),
     ):
-        norm = _error_norm(e[:, part]) * scale
-        if not np.isfinite(norm).any():  # a marker that gives positions only
-            ax.text(0.5, 0.5, f"{what} {NOT_MEASURED}", ha="center", transform=ax.transAxes)
-            ax.set_xlim(axes[0].get_xlim())  # the translation's, drawn first
-            ax.axvspan(w0, w1, color="0.9", zorder=0)
-            ax.set_ylabel(f"{what}\nerror [{unit}]")
-            ax.set_yticks([])
-            continue
-        ax.plot(*_thinned(t, norm, peaks=True), color, lw=0.6, label=f"|{what} error|")
-        ax.axhline(
-            tol * scale,
-            color=color,
-            ls=":",
-            lw=1.2,
-            label=f"tolerance {format_length(tol) if unit == 'um' else format_angle(tol)}",
-        )
-        ax.set_yscale("log")
-        ax.set_ylim(0.1, 3 * max(tol * scale, float(np.max(norm))))
+        seen = [k for k in part if np.isfinite(e[:, k]).any()]
         ax.axvspan(w0, w1, color="0.9", zorder=0)
         ax.set_ylabel(f"{what}\nerror [{unit}]")
-        ax.legend(loc="upper right", fontsize=7, ncol=2)
-        ax.grid(alpha=0.3, which="both")
-    axes[1].set_xlabel("t [s] (shaded: measured window)")
+        if not seen:  # a marker that gives positions only
+            ax.text(0.5, 0.5, f"{what} {NOT_MEASURED}", ha="center", transform=ax.transAxes)
+            ax.set_xlim(axes[0].get_xlim())  # the translation's, drawn first
+            ax.set_yticks([])
+            continue
+        top = tol
+        for k in seen:
+            ax.plot(*_thinned(t, e[:, k] * 1e6, peaks=True), AXIS_COLOURS[k], lw=0.4,
+                    alpha=0.25)  # fmt: skip
+            whole = f", {_amount(k, rms[k])} over the window" if np.isfinite(rms[k]) else ""
+            ax.plot(*_thinned(t, running_rms(t, e[:, k]) * 1e6), AXIS_COLOURS[k], lw=1.4,
+                    label=f"{AXES[k]} RMS{whole}")  # fmt: skip
+            top = max(top, float(np.nanmax(e[:, k])))
+        ax.axhline(tol * 1e6, color="k", ls=":", lw=1.4,
+                   label=f"tolerance {_amount(seen[0], tol)} RMS per axis")  # fmt: skip
+        # Linear: an RMS at 70 % of the tolerance reads as 70 % of the way to its line.
+        ax.set_ylim(0.0, 1.05 * top * 1e6)
+        _legend(ax)
+        ax.grid(alpha=0.3)
+    axes[1].set_xlabel(
+        f"t [s] (shaded: the judged window; solid: each axis's RMS over {RUNNING_RMS_S:g} s; "
+        "faint: each sample's error)"
+    )
 
 
-def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
-    """Draw the RMS error of each cycle (um and urad), the cycles learned from marked, or say
-    that the reference has none."""
+def _legend(ax) -> None:
+    """The row's legend right of its data, never over it (every row's, so the rows keep one
+    width)."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=7, borderaxespad=0)
+
+
+def _amount(k: int, value: float) -> str:
+    """An axis's amount in words: a length for X, Y, Z, an angle for the rotations (below a
+    nanometre or a nanoradian 0, not float noise)."""
+    value = value if value >= 1e-9 else 0.0
+    return format_length(value) if k >= 3 else format_angle(value)
+
+
+def _plot_cycles(ax, cyc: dict, learn_cycles: int, tolerance: tuple[float, float]) -> None:
+    """Draw each axis's RMS error of each cycle as a share of that axis's tolerance (the
+    verdict's measure, six axes on one scale, the tolerance at 100 %), the cycles learned from
+    marked, or say that the reference has none."""
     if cyc["starts"]:
         j = np.arange(len(cyc["starts"]))
-        ax.plot(j, np.array(cyc["rms_translation_m"]) * 1e6, "o-C3", label="translation [um]")
-        rotation = np.array(cyc["rms_rotation_rad"]) * 1e6
-        if np.isfinite(rotation).any():  # else a marker that gives positions only
-            ax.plot(j, rotation, "s-C2", label="rotation [urad]")
-        ax.set_ylim(bottom=0)
+        per_axis = np.asarray(cyc["rms"], dtype=float).reshape(len(j), 6)
+        tol = np.array([tolerance[1]] * 3 + [tolerance[0]] * 3)
+        for k in range(6):
+            if np.isfinite(per_axis[:, k]).any():  # else an axis the file does not measure
+                ax.plot(j, 100 * per_axis[:, k] / tol[k], ("s-" if k < 3 else "o-"),
+                        color=AXIS_COLOURS[k], ms=4, lw=1, label=AXES[k])  # fmt: skip
+        ax.axhline(100, color="k", ls=":", lw=1.4, label="tolerance")
+        ax.set_ylim(0, max(110.0, 1.1 * float(np.nanmax(100 * per_axis / tol))))
         if learn_cycles:
             ax.axvline(learn_cycles - 0.5, color="k", ls=":", lw=1)
             ax.text(
@@ -156,7 +194,7 @@ def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
         from matplotlib.ticker import MaxNLocator
 
         ax.xaxis.set_major_locator(MaxNLocator(nbins=20, integer=True))  # labels never overlap
-        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        _legend(ax)
     else:
         ax.text(
             0.5,
@@ -167,7 +205,7 @@ def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
             transform=ax.transAxes,
         )
     ax.set_xlabel("cycle")
-    ax.set_ylabel("RMS error\nper cycle")
+    ax.set_ylabel("RMS per cycle\n[% of tolerance]")
     ax.grid(alpha=0.3)
 
 
@@ -210,11 +248,12 @@ ZOOM_AFTER_S, ZOOM_S = 60.0, 10.0
 def _plot_zoom(
     axes, moving: list, r, fid: dict, tolerance: tuple[float, float], label: str = "achieved"
 ) -> None:
-    """Draw :data:`ZOOM_S` at full rate around the largest translation error of the measured
-    window: the axis that moves most there (reference and achieved, or measured: ``label``),
-    and the translation error against its tolerance."""
+    """Draw :data:`ZOOM_S` at full rate around the largest error of one translation axis in the
+    measured window: the axis that moves most there (reference and achieved, or measured:
+    ``label``), and each translation axis's error against the per-axis tolerance."""
     t = r.t
-    e = _error_norm(r.x[:, 3:6] - r.x_d[:, 3:6])
+    per_axis = np.abs(r.x[:, 3:6] - r.x_d[:, 3:6])
+    e = np.nanmax(np.nan_to_num(per_axis, nan=-np.inf), axis=1)
     w0, w1 = fid["window_s"]
     inside = np.flatnonzero((t >= w0) & (t <= w1))
     k = int(inside[np.argmax(e[inside])]) if inside.size else int(np.argmax(e))
@@ -227,17 +266,24 @@ def _plot_zoom(
     axes[0].plot(t[m], r.x[m, axis] * scale, "C0", lw=0.9, label=label)
     axes[0].set_ylabel(f"zoom: {AXES[axis]}\n[{unit}]")
     axes[0].set_title(
-        f"zoom, t = {format_window(a, a + ZOOM_S)} s: around the largest translation error of the "
-        f"measured window ({e[k] * 1e6:.3g} um at t = {t[k]:.4g} s)",
+        f"zoom, t = {format_window(a, a + ZOOM_S)} s: around the largest error of a translation "
+        "axis in the measured window "
+        + (
+            f"({e[k] * 1e6:.3g} um at t = {t[k]:.4g} s)" if np.isfinite(e[k]) else "(none measured)"
+        ),
         fontsize=8,
     )
-    axes[1].plot(t[m], e[m] * 1e6, "C3", lw=0.7, label="|translation error|")
-    axes[1].axhline(tolerance[0] * 1e6, color="C3", ls=":", lw=1.2, label="tolerance")
+    for j in range(3):
+        if np.isfinite(per_axis[m, j]).any():
+            axes[1].plot(t[m], per_axis[m, j] * 1e6, AXIS_COLOURS[3 + j], lw=0.7,
+                         label=f"|{AXES[3 + j]} error|")  # fmt: skip
+    axes[1].axhline(tolerance[0] * 1e6, color="k", ls=":", lw=1.2,
+                    label="tolerance (RMS per axis)")  # fmt: skip
     axes[1].set_yscale("log")
     axes[1].set_ylabel("zoom: translation\nerror [um]")
     axes[1].set_xlabel("t [s]")
     for ax in axes:
-        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        _legend(ax)
         ax.grid(alpha=0.3, which="both")
 
 
@@ -279,7 +325,7 @@ def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, 
         n_rows, 1, figsize=(10, sum(heights) + 1.2), gridspec_kw={"height_ratios": heights}
     )
     _plot_poses(axes, moving, r, fid["window_s"], getattr(rep, "curve_label", "achieved"))
-    _plot_error(axes[len(moving) : len(moving) + 2], r, fid["window_s"], tolerance)
+    _plot_error(axes[len(moving) : len(moving) + 2], r, fid, tolerance)
     if zoom:
         _plot_zoom(
             axes[len(moving) + 2 : len(moving) + 4],
@@ -289,14 +335,13 @@ def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, 
             tolerance,
             getattr(rep, "curve_label", "achieved"),
         )
-    _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles)
+    _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles, tolerance)
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])
     ok, line = verdict_of(rep, tolerance)
     title = report_title(rep, line)
     fig.suptitle(title, fontsize=TITLE_POINTS, color="k" if ok else "tab:red")
-    top_in = 0.1 + 0.18 * (title.count("\n") + 1)  # each line of the title, in
-    fig.tight_layout(rect=(0, 0, 1, 1 - top_in / fig.get_figheight()))
+    fig.tight_layout()  # which leaves the suptitle its room
     path = Path(path)
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
     plt.close(fig)
@@ -315,5 +360,7 @@ __all__ = [
     "TITLE_POINTS",
     "TITLE_CHARS",
     "report_title",
+    "RUNNING_RMS_S",
+    "running_rms",
     "plot_report",
 ]
