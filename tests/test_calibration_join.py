@@ -176,3 +176,24 @@ def test_the_robot_command_drives_a_planned_path_whole_unless_told(session):
     args = build_parser().parse_args(["robot", str(poses_csv), "--duration", "5"])
     _robot_reference(args, Scenario())
     assert args.duration == 5.0
+
+
+def test_an_encoder_logs_bus_line_is_read_back_and_bounded(tmp_path):
+    """The ``# bus:`` line written under the header comes back as written (whitespace and a
+    newline inside folded to one line); a log without it says "" and is read the same; a file of
+    a thousand comments keeps only the first 16 for its reader, the rows all read."""
+    t = np.arange(5) * 0.01
+    q = np.zeros((5, 6))
+    path = join.write_encoder_log(tmp_path / "a.csv", t, t, t, q, bus="emulated: ideal\n  servos")
+    log = join.read_encoder_log(path)
+    assert log["bus"] == "emulated: ideal servos" and len(log["time"]) == 5
+    plain = join.write_encoder_log(tmp_path / "b.csv", t, t, t, q)
+    assert join.read_encoder_log(plain)["bus"] == ""
+    text = plain.read_text().splitlines()
+    many = tmp_path / "c.csv"
+    many.write_text("\n".join([text[0]] + [f"# note {k}" for k in range(1000)] + text[1:]) + "\n")
+    comments: list = []
+    out = join.read_table(
+        many, "encoder log", join.ENCODER_LOG_COLUMNS, "", ("t_path",), comments=comments
+    )
+    assert comments == [f"note {k}" for k in range(16)] and len(out["time"]) == 5

@@ -11,6 +11,8 @@ import pytest
 from conftest import HANG_S, needs_extra, robot_bus_yaml, start_as_a_user
 
 from stewart_drake.base.compiled import kernel_versions, versions_added
+from stewart_drake.calibration.join import read_encoder_log
+from stewart_drake.organ_motion.measured_motion import EMULATED_BUS
 
 LATE = "compiled or loaded with the torque on"
 
@@ -79,6 +81,9 @@ def test_a_robot_run_compiles_and_loads_nothing_once_the_torque_is_on(tmp_path):
     assert code == 0, (out, err)
     assert "torque on" in err and LATE not in out + err, (out, err)
     assert "the reference ran to its end" in out + err
+    # Its encoder log says its servos were the emulator's, as the run printed them.
+    bus = read_encoder_log(next((tmp_path / "out").glob("*_encoders.csv")))["bus"]
+    assert bus.startswith(EMULATED_BUS) and bus[len(EMULATED_BUS) :] in out, (bus, out)
 
 
 @pytest.mark.slow

@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 from test_verify import MARKER_COLUMNS, PARAMS, phantom_run, tracker_view, write_marker_export
 
+from stewart_drake.calibration.join import read_encoder_log, write_encoder_log
 from stewart_drake.cli.main import main
+from stewart_drake.organ_motion.measured_motion import EMULATED_BUS
 
 reportlab = pytest.importorskip("reportlab", reason='needs the qa extra: pip install -e ".[qa]"')
 
@@ -337,6 +339,39 @@ def test_an_encoder_logs_record_names_its_robot_and_says_it_is_not_independent(t
     first = page_texts(next((out / "records").glob("*.pdf")))[0]
     assert "Measured by the robot's own encoders: not independent of the robot" in first
     assert "Rotation" in first and "RMS error [deg]" in first  # six axes: both tables
+
+
+@pytest.mark.parametrize(
+    "bus, emulated",
+    [
+        (EMULATED_BUS + "realistic servos (seed 3): k 0.9-1.1 N m/A", True),
+        ("the servos on /dev/ttyUSB0, not emulated by this run", False),
+        ("", None),
+    ],
+    ids=["emulated", "not-emulated", "unsaid"],
+)
+def test_an_encoder_logs_record_says_whether_its_bus_was_emulated(tmp_path, bus, emulated):
+    """The bus line a run writes under its encoder log's header is read back as written and
+    carried into the record: ``emulated`` True, False, or None (null) for a log that does not
+    say, and the first page's measuring device quotes it (or says it is not written)."""
+    assert main(["examples", str(tmp_path / "ex")]) == 0
+    log = read_encoder_log(tmp_path / "ex" / "run_encoders.csv")
+    path = write_encoder_log(
+        tmp_path / "run_encoders.csv", log["time"], log["t_run"], log["t_path"], log["q"], bus=bus
+    )
+    again = read_encoder_log(path)  # the comment line is read past: the same log
+    assert again["bus"] == bus
+    assert np.array_equal(again["q"], log["q"]) and len(again["time"]) == len(log["time"])
+    out = tmp_path / "out"
+    code = main(["verify", "breathing", *PARAMS, "--measured", str(path), "--out", str(out)]
+                + ["--record"])  # fmt: skip
+    assert code == 0
+    data = json.loads(next((out / "records").glob("*.json")).read_text())
+    assert data["emulated"] is emulated
+    first = page_texts(next((out / "records").glob("*.pdf")))[0]
+    first = " ".join(first.replace("\\(", "(").replace("\\)", ")").split())
+    said = f"its run wrote of its bus: {bus}." if bus else "whether its bus was emulated is not"
+    assert said in first and said in data["measuring_device"], first
 
 
 def test_the_reference_is_recorded_as_the_command_line_chose_it():

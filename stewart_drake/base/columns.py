@@ -28,10 +28,17 @@ def header_cell(cell: str) -> tuple[str, str]:
 CSV_BYTES_PER_LINE = 128.0
 
 
-def _lines(text: str):
+#: The most comment lines :func:`read_csv_columns` keeps for its caller (a file of a million
+#: comments costs no more than its text).
+MAX_KEPT_COMMENTS = 16
+
+
+def _lines(text: str, comments: list | None = None):
     """(number from 1, line with its newline) of ``text``'s lines that are neither blank nor
     ``#`` comments, one at a time (the whole list of a long file's lines would cost ~60 bytes a
-    line); lines end at ``\n``, ``\r\n`` or, in a file with no ``\n``, ``\r``."""
+    line); lines end at ``\n``, ``\r\n`` or, in a file with no ``\n``, ``\r``. With
+    ``comments``, the first :data:`MAX_KEPT_COMMENTS` comments' text (after the ``#``,
+    stripped) is appended to it."""
     newline = "\n" if "\n" in text or "\r" not in text else "\r"
     start, number = 0, 0
     while start < len(text):
@@ -41,10 +48,19 @@ def _lines(text: str):
         start, number = end + 1, number + 1
         if line.strip() and not line.lstrip().startswith("#"):
             yield number, line.rstrip("\r") + "\n"
+        elif comments is not None and line.strip() and len(comments) < MAX_KEPT_COMMENTS:
+            comments.append(line.strip()[1:].strip())
 
 
 def read_csv_columns(
-    path, what: str, max_bytes: float, remedy: str, columns_of, nan_ok=(), bad_cell: str = ""
+    path,
+    what: str,
+    max_bytes: float,
+    remedy: str,
+    columns_of,
+    nan_ok=(),
+    bad_cell: str = "",
+    comments: list | None = None,
 ) -> tuple[dict, np.ndarray]:
     """The columns of a CSV whose first line names the columns with their units (``X [mm]``;
     ``#`` comments, blank lines), in SI units, read row by row into arrays allocated once from
@@ -57,6 +73,8 @@ def read_csv_columns(
         columns_of: header cells -> {name: (index, factor to SI)} of the columns to read
             (raising InvalidConfigError for a bad header).
         nan_ok: the columns where ``nan`` is a value.  bad_cell: appended to a bad cell's message.
+        comments: a list the file's first :data:`MAX_KEPT_COMMENTS` comments are appended to
+            (their text after the ``#``), or None.
     Returns:
         ({name: (N,) values}, (N,) the file's line of each row).
     Raises:
@@ -72,7 +90,7 @@ def read_csv_columns(
     rows_bound = check_parse_memory(path, what, raw, CSV_BYTES_PER_LINE, 1.0)
     text = decode_text(raw, path, what, remedy, "utf-8-sig")
     del raw
-    numbered = _lines(text)
+    numbered = _lines(text, comments)
     number = 0
 
     def cells_of():

@@ -71,12 +71,13 @@ def _header_text(columns: dict) -> str:
     return ",".join(f"{n} [{_SI[kind]}]" for n, kind in columns.items())
 
 
-def read_table(path, what: str, columns: dict, remedy: str, nan_ok=()) -> dict:
+def read_table(path, what: str, columns: dict, remedy: str, nan_ok=(), comments=None) -> dict:
     """The columns ``columns`` ({name: kind}) of the CSV at ``path``, in SI units: {name: (N,)
     array, "lines": (N,) the file's line of each row}. The first line names every column with
-    its unit in brackets; lines starting with ``#`` are comments; other columns are read past.
-    Read row by row (:func:`~stewart_drake.base.columns.read_csv_columns`): a day-long encoder
-    log fits in about 2.5 times its size.
+    its unit in brackets; lines starting with ``#`` are comments (the first few appended to
+    ``comments``, a list, when given); other columns are read past. Read row by row
+    (:func:`~stewart_drake.base.columns.read_csv_columns`): a day-long encoder log fits in
+    about 2.5 times its size.
 
     Raises:
         MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
@@ -110,7 +111,9 @@ def read_table(path, what: str, columns: dict, remedy: str, nan_ok=()) -> dict:
             )
         return found
 
-    out, lines = read_csv_columns(path, what, MAX_LOG_BYTES, remedy, columns_of, nan_ok)
+    out, lines = read_csv_columns(
+        path, what, MAX_LOG_BYTES, remedy, columns_of, nan_ok, comments=comments
+    )
     if not len(lines):
         raise InvalidConfigError(f"{path}: the {what} has no rows; {remedy}")
     return {name: out[name] for name in columns} | {"lines": lines}
@@ -141,7 +144,8 @@ def read_encoder_log(path, carriage: bool = False) -> dict:
     """The encoder log at ``path`` (module docstring), read and checked whole by
     :func:`read_table`: {"t_path": (n,) s, NaN on the lead-in's lines; "q": (n, 6) the
     encoders' raw readings, rad; "time", "t_run": (n,) s; "lines": (n,) each row's line in the
-    file}, and with ``carriage`` "s": (n,) m, the surrogate's carriage as its servo's encoder
+    file, "bus": what its ``# bus:`` line says its bus was, or "" (:func:`encoder_log_bus`)},
+    and with ``carriage`` "s": (n,) m, the surrogate's carriage as its servo's encoder
     read it (never ``s_cmd``, its command). Columns are taken by name; any others (``s_cmd``,
     a later column) are read past.
 
@@ -152,10 +156,11 @@ def read_encoder_log(path, carriage: bool = False) -> dict:
     """
     columns = ENCODER_LOG_COLUMNS | ({"s": "length"} if carriage else {})
     remedy = CARRIAGE_REMEDY if carriage else ENCODER_LOG_REMEDY
-    log = read_table(path, "encoder log", columns, remedy, nan_ok=("t_path",))
+    comments: list[str] = []
+    log = read_table(path, "encoder log", columns, remedy, nan_ok=("t_path",), comments=comments)
     q = np.column_stack([log.pop(n) for n in READING_COLUMNS])
     _check_log_magnitudes(path, log, q)
-    return log | {"q": q}
+    return log | {"q": q, "bus": encoder_log_bus(comments)}
 
 
 #: The largest encoder reading an encoder log may hold, rad (a multi-turn count of 2^31 on a
@@ -199,13 +204,20 @@ def encoder_log_path(npz) -> Path:
     return npz.with_name(f"{npz.stem}_encoders.csv")
 
 
-def write_encoder_log(path, time_s, t_run, t_path, q, surrogate=None) -> Path:
+#: The encoder log's comment line that says what its bus was (:func:`write_encoder_log`).
+BUS_COMMENT = "# bus: "
+
+
+def write_encoder_log(path, time_s, t_run, t_path, q, surrogate=None, bus: str = "") -> Path:
     """Write the encoder log (module docstring) at ``path`` atomically: ``time_s``, ``t_run``,
     ``t_path`` (n,) s, ``q`` (n, 6) rad; with ``surrogate`` = (s, s_cmd, s_ref, s_delay),
     (n,) each, m, m, m and s, four more columns (:data:`SURROGATE_LOG_COLUMNS`: the
     surrogate's carriage read by its servo's encoder, commanded in that period, its reference
     on the run's clock, the delay its command was taken with), or (s, s_cmd) alone, two (a
-    carriage commanded along its reference itself, without lag matching); returns the path."""
+    carriage commanded along its reference itself, without lag matching); with ``bus``, a
+    comment line under the header, ``# bus: <bus>`` (:data:`BUS_COMMENT`: whether the servos
+    were emulated, in words; one line), which :func:`read_encoder_log` reads back; returns the
+    path."""
     columns = [time_s, t_run, t_path, np.asarray(q).reshape(-1, 6)]
     header = ENCODER_LOG_COLUMNS
     if surrogate is not None:
@@ -215,8 +227,22 @@ def write_encoder_log(path, time_s, t_run, t_path, q, surrogate=None) -> Path:
             )
         columns += [np.asarray(c, dtype=float) for c in surrogate]
         header = header | dict(list(SURROGATE_LOG_COLUMNS.items())[: len(surrogate)])
-    _write_csv(path, _header_text(header), np.column_stack(columns))
+    text = _header_text(header)
+    if bus:
+        text += "\n" + BUS_COMMENT + " ".join(str(bus).split())
+    _write_csv(path, text, np.column_stack(columns))
     return Path(path)
+
+
+def encoder_log_bus(comments) -> str:
+    """What an encoder log says its bus was, from its comments' text (the ``# bus:`` line
+    :func:`write_encoder_log` writes under the header), or "" for a log that says nothing of it
+    (one written before the line existed, or by hand)."""
+    tag = BUS_COMMENT[1:].strip()  # "bus:", the comment's text after its "#"
+    for text in comments:
+        if text.startswith(tag):
+            return text[len(tag) :].strip()
+    return ""
 
 
 def write_tracker_file(path, time_s, poses) -> Path:

@@ -367,11 +367,13 @@ def _robot_budget(args, scenario) -> int:
 def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
+    from ..organ_motion.measured_motion import EMULATED_BUS
     from .emulator_process import EMULATED_LOOP_TIMEOUT_S, start_emulator
     from .session import end_line, run_on_robot
 
     emulator = None
     held: dict[str, Any] = {}  # the session's station diagram, kept just before the torque goes on
+    bus_words = f"the servos on {scenario.bus.port}, not emulated by this run"
     try:
         if args.emulate is not None:
             print(
@@ -393,6 +395,8 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 f"bus emulator on {scenario.bus.port} (the robot's Drake plant {clock}): "
                 f"{emulator.servos.summary()}"
             )
+            bus_words = EMULATED_BUS + emulator.servos.summary()
+
         if args.calibrate is not None or args.dry_run:
             return _read_only(args, scenario)
         meshcat = None
@@ -404,7 +408,7 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
         if args.follow is not None:
             from .follow_command import follow_from_arguments
 
-            run = follow_from_arguments(args.follow, args, scenario, out, stem, signals)
+            run = follow_from_arguments(args.follow, args, scenario, out, stem, signals, bus_words)
         elif args.teleop:
             from .session import teleop_on_robot
 
@@ -429,6 +433,7 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 signals=signals,
                 realtime=args.realtime,
                 surrogate=surrogate,
+                bus_words=bus_words,
                 before_torque=lambda sd, simulator: held.update(sd=sd),
             )
     finally:

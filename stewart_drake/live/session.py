@@ -112,6 +112,7 @@ def run_on_robot(
     signals: SessionSignals | None = None,
     realtime: bool = False,
     surrogate=None,
+    bus_words: str = "",
 ) -> RobotRun:
     """Run the scenario's closed loop on the robot (the safety sequence of the module's
     docstring); never leaves the torque on.
@@ -143,6 +144,10 @@ def run_on_robot(
             path checked against the stage's travel and speed before the torque goes on; the
             encoder log gains its columns and the run its relative latency. None: a surrogate's
             servo on the bus holds where it was read.
+        bus_words: what the bus is (its servos real, or the emulator's, in words), written in
+            the encoder log (:func:`~stewart_drake.calibration.join.write_encoder_log`) for
+            the verdicts and records that read it; "" writes none (a log that says nothing of
+            its bus).
     Returns:
         :class:`RobotRun` (exit_code 0 only when the reference ran to its end and no signal
         came; a signal after the torque-off is named in ``reason`` and makes it 128 + n).
@@ -172,9 +177,9 @@ def run_on_robot(
     homed_run = dataclasses.replace(scenario, duration_s=homed.duration_s + hold_s)
     session = (homed_run, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
     if signals is not None:
-        return _run(*session, before_torque, signals, realtime, surrogate)
+        return _run(*session, before_torque, signals, realtime, surrogate, bus_words)
     with SessionSignals() as own:
-        return own.settle(_run(*session, before_torque, own, realtime, surrogate))
+        return own.settle(_run(*session, before_torque, own, realtime, surrogate, bus_words))
 
 
 def _check_surrogate_trace(scenario, surrogate) -> None:
@@ -216,6 +221,7 @@ def _run(
     signals,
     realtime,
     surrogate=None,
+    bus_words="",
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
     from ..run.simulate import advance
@@ -255,7 +261,9 @@ def _run(
         _stop(bus, station.driver, ended)
     if not powered:
         return ended
-    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", homed, surrogate is not None)
+    _keep_logs(
+        ended, sd, simulator, wall, out / f"{stem}.npz", homed, surrogate is not None, bus_words
+    )
     return ended
 
 
@@ -366,7 +374,14 @@ def _check_still(sd, bus, start: MeasuredPose) -> None:
 
 
 def _keep_logs(
-    ended: RobotRun, sd, simulator, wall: float, path: Path, homed, judge: bool = False
+    ended: RobotRun,
+    sd,
+    simulator,
+    wall: float,
+    path: Path,
+    homed,
+    judge: bool = False,
+    bus_words: str = "",
 ) -> None:
     """The run's metrics and its logs saved at ``path`` into ``ended``, and the encoders'
     readings beside it (their times on the computer's clock, s since the epoch, and on the
@@ -397,7 +412,7 @@ def _keep_logs(
             s_ref = reference.evaluate(t)[0] if reference is not None else s_cmd
             carriage = (s, s_cmd, s_ref, driver.surrogate_delays())
         ended.encoder_log = write_encoder_log(
-            encoder_log_path(path), t_read + epoch, t, tau, q, surrogate=carriage
+            encoder_log_path(path), t_read + epoch, t, tau, q, surrogate=carriage, bus=bus_words
         )
         if judge and carriage is not None:
             try:

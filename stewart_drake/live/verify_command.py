@@ -516,7 +516,7 @@ def _measured(path: str, args, scenario, axis_map: dict):
     from ..run.plan import robot_geometry
 
     log = read_encoder_log(path)
-    return encoder_motion(path, log["t_path"], log["q"], robot_geometry(scenario))
+    return encoder_motion(path, log["t_path"], log["q"], robot_geometry(scenario), log["bus"])
 
 
 def _summary(ver) -> str:

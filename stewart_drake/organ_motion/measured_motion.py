@@ -23,6 +23,10 @@ from scipy.spatial.transform import Rotation
 from ..base.errors import InvalidConfigError
 from .fidelity import AXES
 
+#: How an encoder log's bus line begins when its run's servos were the emulator's
+#: (:attr:`MeasuredMotion.bus`).
+EMULATED_BUS = "emulated: "
+
 
 @dataclass(frozen=True)
 class MeasuredMotion:
@@ -41,6 +45,8 @@ class MeasuredMotion:
         layout: how the file was read, in words. dropped: what was left out as an export's
             artefact, or "". repaired: a line per time repaired from the file's frame counter
             (:func:`~stewart_drake.references.trace_files.repaired_times`), or ().
+        bus: an encoder log's bus as its run wrote it (emulated or not, in words), or "" where
+            the file does not say (a tracker's file; a log written without it).
     """
 
     path: str
@@ -51,6 +57,7 @@ class MeasuredMotion:
     layout: str = ""
     dropped: str = ""
     repaired: tuple = ()
+    bus: str = ""
 
     @property
     def rotations_measured(self) -> bool:
@@ -226,7 +233,7 @@ def _on_reference_clock(path, t_path: np.ndarray) -> np.ndarray:
     return on
 
 
-def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
+def encoder_motion(path, t_path, readings, geometry, bus: str = "") -> MeasuredMotion:
     """The robot's encoder log as a :class:`MeasuredMotion`: the platform's poses in the base
     frame by forward kinematics of ``geometry`` (the encoders' zero errors taken off first), on
     the reference's clock (the log's ``t_path``; its lines without one, the lead-in, left out).
@@ -234,6 +241,7 @@ def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
     Args:
         path: the log, for messages. t_path: (n,) s, NaN on the lead-in's lines.
         readings: (n, 6) the encoders' raw readings, rad. geometry: the robot.
+        bus: what the log says its bus was (:attr:`MeasuredMotion.bus`).
     Raises:
         InvalidConfigError: no line on the reference's clock, its times not increasing.
         ForwardKinematicsError: a reading forward kinematics cannot solve (named).
@@ -249,7 +257,7 @@ def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
         x[a : a + 2000], _ = fk(geometry, theta[a : a + 2000], x0=x0)
         x0 = x[min(a + 1999, len(theta) - 1)]
     return MeasuredMotion(
-        str(path), "encoders", t_path[on], x, np.ones(6, dtype=bool), "encoder log"
+        str(path), "encoders", t_path[on], x, np.ones(6, dtype=bool), "encoder log", bus=bus
     )
 
 
@@ -280,6 +288,7 @@ def carriage_motion(path, t_path, s, axis: int, sign: float = 1.0) -> MeasuredMo
 
 
 __all__ = [
+    "EMULATED_BUS",
     "MeasuredMotion",
     "MEASURED_REMEDY",
     "QUATERNION_COLUMNS",

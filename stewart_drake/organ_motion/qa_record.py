@@ -167,14 +167,30 @@ def device_words(measured) -> tuple[str, bool]:
     is not (its encoders see neither the gears' play, nor what bends, nor a geometry that is
     wrong: forward kinematics of the model turn them into poses)."""
     if measured.kind in ("encoders", "carriage"):
+        bus = (
+            f"its run wrote of its bus: {measured.bus}"
+            if measured.bus
+            else "whether its bus was emulated is not written in the log"
+        )
         return (
             "the robot's own encoder log (forward kinematics of the robot's model): not "
-            "independent of the robot; it sees neither the gears' play nor what bends, and "
-            "whether its bus was emulated is not written in the log: an acceptance needs an "
-            "external tracker",
+            f"independent of the robot; it sees neither the gears' play nor what bends. {bus}. "
+            "An acceptance needs an external tracker",
             False,
         )
     return f"an external tracker's file ({measured.layout or 'as read'})", True
+
+
+def emulated(measured) -> bool | None:
+    """Whether the motion judged ran on an emulated bus, as its encoder log says (its
+    :attr:`~.measured_motion.MeasuredMotion.bus`): True, False, or None where the file does
+    not say (a tracker's file, which measures whatever stood before it; a log without the
+    line)."""
+    if not measured.bus:
+        return None
+    from .measured_motion import EMULATED_BUS
+
+    return measured.bus.startswith(EMULATED_BUS)
 
 
 def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict:
@@ -186,7 +202,8 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
     ``window_s``, ``cycles_judged`` (the reference's cycles the window holds: one the
     recording misses by at most :data:`~.measured_span.CYCLE_SLACK` of a cycle counts), the
     identity (``reference``, ``reference_motion`` (the motion and its parameters),
-    ``measured_file``, ``measuring_device`` and ``independent``, ``inputs`` with their SHA-256,
+    ``measured_file``, ``measuring_device`` and ``independent``, ``emulated`` (:func:`emulated`),
+    ``inputs`` with their SHA-256,
     ``scenario`` (the phantom; "" when the run names none), ``phantom_serial``, ``operator``,
     ``notes``, ``date``, ``software``), the judgement's ``line`` and ``causes``, and ``schema``
     (:data:`RECORD_SCHEMA`)."""
@@ -226,6 +243,7 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
             "measured_file": Path(ver.measured.path).name,
             "measuring_device": device,
             "independent": independent,
+            "emulated": emulated(ver.measured),
             "inputs": _unchanged_inputs(context),
             "frames": ver.frame.words(ver.offsets, ver.measured.measured),
             "clock": ver.clock,
