@@ -388,6 +388,33 @@ def test_swapped_files_fail_at_any_bound_and_the_right_pair_passes(tmp_path, bou
     assert right.passed and right.judgement.causes == [], right.judgement.line
 
 
+@pytest.mark.parametrize("bound_s", [0.6, 2.0])
+@pytest.mark.parametrize("played", ["surrogate", "internal"])
+def test_a_platform_that_played_the_others_trace_fails_at_any_bound(tmp_path, played, bound_s):
+    """The surrogate platform given the internal trace (or the internal platform the
+    surrogate's), the other right: the pair's relative latency, -450 ms, lies within a 0.6 s
+    bound and each motion follows its reference well enough to give a clock, so only the match
+    to the references tells it. The played measurement comes about 1.9 times nearer the other's
+    reference (mean squared distances), the right one about 1.8 times nearer its own: FAIL,
+    naming the platform, at either bound; the right pair at the same bounds PASSes above."""
+    t = camera_clock()
+    if played == "surrogate":
+        files = pair_files(tmp_path, surrogate=seen(3, TRACE, t, DELAY_S, offset_mm=OFFSETS_MM[1]))
+    else:
+        files = pair_files(tmp_path, internal=seen(1, SURROGATE, t, DELAY_S, offset_mm=412.3))
+    pair = judge(*files, max_relative_latency_s=bound_s)
+    assert abs(pair.relative_latency_s) == pytest.approx(0.45, abs=0.01)
+    assert not pair.passed and not pair.judgement.passed
+    other = "internal" if played == "surrogate" else "surrogate"
+    words = causes(pair)
+    assert words.startswith(f"the {played} platform played the {other}'s trace: "), words
+    ratio = float(words.split(" comes ")[1].split(" times")[0])
+    own = float(words.split(" comes ")[2].split(" times")[0])
+    assert 1.6 < ratio < 2.2 and 1.6 < own < 2.2, words
+    right = judge(*pair_files(tmp_path), max_relative_latency_s=bound_s)
+    assert right.passed and right.judgement.causes == [], right.judgement.line
+
+
 @pytest.mark.parametrize("as_written, passes", [(True, True), (False, False)])
 def test_a_surrogate_file_that_starts_later_is_taken_on_its_clock(tmp_path, as_written, passes):
     """The surrogate's file cut to start 0.4 s into the motion's clock, its times as written,

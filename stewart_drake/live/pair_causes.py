@@ -26,6 +26,12 @@ REVERSED_RATIO = 0.25
 #: Two measurements are swapped when each matches the other's reference this many times better
 #: (least mean squared distance, each less its mean) than its own.
 SWAPPED_RATIO = 0.25
+#: One platform played the other's trace when its measurement comes this many times nearer the
+#: other's reference than its own (the inverse of the ratio: 1.25; a right pair's measurements
+#: come about 1.8 times nearer their own: 0.54 and 0.55 on the example pair, one that played the
+#: other's trace 1.9 times nearer the other's; on IntERAct's 21 right pairs 3.1 to 109 times
+#: nearer their own) while the other measurement is nearer its own.
+PLAYED_RATIO = 0.8
 #: Shifts searched around the internal's for the swap's test, s either way.
 SWAP_SEARCH_S = 5.0
 
@@ -124,13 +130,17 @@ def _best_match(t, v, reference, j: int, shifts: tuple, step: float) -> tuple[fl
 def swapped_words(
     pair_refs, pair_measured, around_s: float, relative_latency_s: float
 ) -> str | None:
-    """The cause when the two measurements are swapped, else None. Each measurement is matched
-    (its axis along which its reference moves most, at its best shift within
-    :data:`SWAP_SEARCH_S` of ``around_s``, each less its mean) to its own reference and to the
-    other's; swapped when each matches the other's reference :data:`SWAPPED_RATIO` times better,
-    or when each matches the other's at least as well and, exchanged, the pair's relative
-    latency is smaller than as given. Looked for on every pair, a PASS included: a bound on the
-    relative latency wide enough to hold a swapped pair's would pass it otherwise.
+    """The cause when the two measurements are swapped, or one platform played the other's
+    trace, else None. Each measurement is matched (its axis along which its reference moves
+    most, at its best shift within :data:`SWAP_SEARCH_S` of ``around_s``, each less its mean) to
+    its own reference and to the other's; swapped when each matches the other's reference
+    :data:`SWAPPED_RATIO` times better, or when each matches the other's at least as well and,
+    exchanged, the pair's relative latency is smaller than as given; one played the other's
+    trace when it alone matches the other's reference :data:`PLAYED_RATIO` times better than its
+    own (the other nearer its own). Looked for on every pair, a PASS included: a bound on the
+    relative latency wide enough to hold such a pair's would pass it otherwise (a surrogate
+    platform given the internal trace measures 450 ms late on the example pair, within a 0.6 s
+    bound).
 
     Args:
         pair_refs: (internal reference, surrogate reference). pair_measured: (internal
@@ -159,14 +169,33 @@ def swapped_words(
     exchanged = crossed[0] - crossed[1]  # the surrogate's reference's shift less the internal's
     strong = all(r > 1.0 / SWAPPED_RATIO for r in ratios)
     in_sync = all(r >= 1.0 for r in ratios) and abs(exchanged) < abs(relative_latency_s)
-    if not (strong or in_sync):
-        return None
     a, b = (Path(m.path).name for m in pair_measured)
+    if not (strong or in_sync):
+        return _played_words(ratios, (a, b))
     return (
         f"the two measurements swapped: {a} comes {ratios[0]:.3g} times nearer the surrogate's "
         f"reference than the internal's, and {b} {ratios[1]:.3g} times nearer the internal's "
         f"than the surrogate's (mean squared distances); exchanged, their relative latency is "
         f"{seconds(exchanged)}: give each file to its option"
+    )
+
+
+def _played_words(ratios: list, names: tuple) -> str | None:
+    """The cause when one measurement alone comes :data:`PLAYED_RATIO` times nearer the other's
+    reference than its own (``ratios``: each one's mean squared distance to its own reference
+    over the other's), the other nearer its own; else None."""
+    played = [r >= 1.0 / PLAYED_RATIO for r in ratios]
+    if played[0] == played[1]:
+        return None
+    k = 0 if played[0] else 1
+    if not ratios[1 - k] < 1.0:
+        return None
+    platform, other = ("internal", "surrogate") if k == 0 else ("surrogate", "internal")
+    return (
+        f"the {platform} platform played the {other}'s trace: {names[k]} comes "
+        f"{ratios[k]:.3g} times nearer the {other}'s reference than the {platform}'s, where "
+        f"{names[1 - k]} comes {1.0 / ratios[1 - k]:.3g} times nearer its own (mean squared "
+        f"distances, each less its mean): give the {platform} platform its own trace"
     )
 
 
@@ -176,6 +205,7 @@ def swapped_words(
 __all__ = [
     "REVERSED_RATIO",
     "SWAPPED_RATIO",
+    "PLAYED_RATIO",
     "SWAP_SEARCH_S",
     "why_not_following",
     "swapped_words",
