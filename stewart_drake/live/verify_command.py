@@ -309,7 +309,7 @@ def cmd_verify(args) -> int:
                     context,
                     inputs=tuple(inputs),
                     identities=identities,
-                    scenario=phantom_words(args, m.kind),
+                    scenario=phantom_words(args, m),
                 ),
                 stem,
             )

@@ -6,13 +6,14 @@ them)."""
 from __future__ import annotations
 
 
-def phantom_words(args, kind: str) -> str:
+def phantom_words(args, measured) -> str:
     """The phantom a record names: for the robot's encoder log the robot that wrote it (its
     ``--scenario``, whose forward kinematics read it); for a tracker's file the ``--scenario``
-    given, or "" when the default stands (it names no phantom: ``--phantom-serial`` does)."""
+    given, or "" when the default stands (it names no phantom: ``--phantom-serial`` does).
+    ``measured``: the :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion`."""
     from ..organ_motion import SCENARIO
 
-    if kind in ("encoders", "carriage"):
+    if measured.from_the_robot:
         return f"{args.scenario} (the robot whose encoder log this is: --scenario)"
     return "" if str(args.scenario) == SCENARIO else str(args.scenario)
 

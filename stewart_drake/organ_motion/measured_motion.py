@@ -23,6 +23,8 @@ from scipy.spatial.transform import Rotation
 from ..base.errors import InvalidConfigError
 from .fidelity import AXES
 
+#: The kinds of a :class:`MeasuredMotion` read from the robot's own encoder log.
+ROBOT_KINDS = ("encoders", "carriage")
 #: How an encoder log's bus line begins when its run's servos were the emulator's
 #: (:attr:`MeasuredMotion.bus`).
 EMULATED_BUS = "emulated: "
@@ -58,6 +60,12 @@ class MeasuredMotion:
     dropped: str = ""
     repaired: tuple = ()
     bus: str = ""
+
+    @property
+    def from_the_robot(self) -> bool:
+        """Whether the motion is the robot's own encoder log ("encoders", "carriage"): on the
+        reference's own clock, and not independent of the robot it judges."""
+        return self.kind in ROBOT_KINDS
 
     @property
     def rotations_measured(self) -> bool:
@@ -288,6 +296,7 @@ def carriage_motion(path, t_path, s, axis: int, sign: float = 1.0) -> MeasuredMo
 
 
 __all__ = [
+    "ROBOT_KINDS",
     "EMULATED_BUS",
     "MeasuredMotion",
     "MEASURED_REMEDY",

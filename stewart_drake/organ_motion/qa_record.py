@@ -166,7 +166,7 @@ def device_words(measured) -> tuple[str, bool]:
     :class:`~.measured_motion.MeasuredMotion`: a tracker's file is; the robot's own encoder log
     is not (its encoders see neither the gears' play, nor what bends, nor a geometry that is
     wrong: forward kinematics of the model turn them into poses)."""
-    if measured.kind in ("encoders", "carriage"):
+    if measured.from_the_robot:
         bus = (
             f"its run wrote of its bus: {measured.bus}"
             if measured.bus

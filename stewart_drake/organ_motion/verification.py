@@ -355,7 +355,7 @@ def verify(
     if clock_offset_s is not None:
         check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
-    if measured.kind in ("encoders", "carriage"):
+    if measured.from_the_robot:
         clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
         # The carriage's s is about the stage's mid-travel: its offset removed, as a camera's.
         encoders = measured.kind == "encoders"
