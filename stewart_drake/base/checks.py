@@ -210,6 +210,14 @@ def available_memory_bytes() -> float | None:
     return available
 
 
+def undecoded_byte(character: str) -> str:
+    """The byte a lone surrogate stands for, as text ("0xE9"): Python reads each byte of a file
+    name or an argument that is not UTF-8 as U+DC80-U+DCFF; any other surrogate as its code
+    point ("U+D800")."""
+    code = ord(character)
+    return f"0x{code - 0xDC00:02X}" if 0xDC80 <= code <= 0xDCFF else f"U+{code:04X}"
+
+
 def format_bytes(n_bytes: float) -> str:
     """``n_bytes`` for messages: "4.2 GB", "12 kB", "1e+20 bytes"."""
     if n_bytes >= 1e18:

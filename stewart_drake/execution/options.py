@@ -194,6 +194,7 @@ def check_input_names(inputs) -> None:
     Raises:
         InvalidConfigError: naming the option, the byte and its place.
     """
+    from ..base.checks import undecoded_byte
     from ..base.errors import InvalidConfigError
 
     for words, path in inputs:
@@ -201,8 +202,7 @@ def check_input_names(inputs) -> None:
         try:
             name.encode("utf-8")
         except UnicodeEncodeError as err:
-            code = ord(name[err.start])
-            byte = f"0x{code - 0xDC00:02X}" if 0xDC80 <= code <= 0xDCFF else f"U+{code:04X}"
+            byte = undecoded_byte(name[err.start])
             shown = name.encode("utf-8", "backslashreplace").decode("ascii", "backslashreplace")
             raise InvalidConfigError(
                 f"{words.split(' ', 1)[0]} {shown}: its name is not UTF-8 text (byte {byte} at "

@@ -50,12 +50,13 @@ def undrawable(text: str) -> str:
     "": a character of no glyph in :data:`FONT` (Japanese, Devanagari...), a right-to-left one
     (Hebrew, Arabic: reportlab draws them left to right, unshaped), or a byte that is not
     UTF-8 (read from the command line as a lone surrogate)."""
+    from ..base.checks import undecoded_byte
+
     glyphs = _drawable_codepoints()
     for i, c in enumerate(text):
         code = ord(c)
         if 0xD800 <= code <= 0xDFFF:
-            byte = f"0x{code - 0xDC00:02X}" if code >= 0xDC80 else f"U+{code:04X}"
-            return f"a byte that is not UTF-8 ({byte}) at character {i + 1}"
+            return f"a byte that is not UTF-8 ({undecoded_byte(c)}) at character {i + 1}"
         if unicodedata.bidirectional(c) in ("R", "AL"):
             what = "a right-to-left character"
         elif code not in glyphs and unicodedata.category(c)[0] != "C":
