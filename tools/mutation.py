@@ -101,6 +101,9 @@ MODULES = {
         "tests/test_verification.py",
     ),
     "stewart_drake/organ_motion/verdict_levels.py": ("tests/test_measured_verdict.py",),
+    # The record's values from a verification made by hand (tests/test_qa_record_data.py), not
+    # tests/test_qa_record.py, which runs the command and draws the PDF: 10 s a mutant.
+    "stewart_drake/organ_motion/qa_record.py": ("tests/test_qa_record_data.py",),
     "stewart_drake/organ_motion/verdict_sensitivity.py": (
         "tests/test_measured_verdict.py",
         "tests/test_verify_discrimination.py",
