@@ -79,6 +79,19 @@ def test_a_searched_clock_leaving_over_a_tenth_cannot_judge(left, judged):
         assert "over 10% of the recording" in cannot and "--clock-offset" in cannot
 
 
+def test_as_many_samples_before_as_after_are_counted():
+    words, _ = uncompared_words(_uncompared(before=5, after=5, before_s=0.05, after_s=0.05))
+    assert words.startswith("10 of 1000 measured samples not compared (1%")
+
+
+def test_a_recording_half_a_second_longer_is_said_and_a_clock_not_said_searched_is_known():
+    words, _ = uncompared_words(_uncompared(after=10, after_s=0.5, longer_s=0.5, whole=True))
+    assert words.endswith("; the recording 500 ms longer than the reference)")
+    unsaid = _uncompared(before=500, before_s=50.0)
+    del unsaid["whole"]
+    assert uncompared_words(unsaid)[1] == ""
+
+
 def test_a_known_clock_judges_whatever_it_leaves():
     assert uncompared_words(_uncompared(before=600, before_s=60.0, whole=True))[1] == ""
 
@@ -113,7 +126,7 @@ def test_pauses_are_listed_up_to_three_then_counted():
         "3 s after t = 30 s and 1 more of the file): each sample at its own time, nothing "
         "bridged"
     )
-    assert "and 1 more" not in pause_words(four[:3]) and "3 pauses" in pause_words(four[:3])
+    assert "more" not in pause_words(four[:3]) and "3 pauses" in pause_words(four[:3])
 
 
 def _frame(removes: bool, offsets, measured=ALL):
@@ -238,3 +251,23 @@ def test_excluded_frames_are_counted_and_none_says_nothing():
         "; 5 frames excluded as outliers (--exclude-outliers: beyond 6 robust SD and 5x the "
         "tolerance from the median error on some axis); the rest judged"
     )
+
+
+def test_on_a_noisy_axis_the_robust_spread_sets_the_bound():
+    """X with 100 um of noise (seeded): 6 robust SD is about 0.6 mm, beyond 5 tolerances
+    (0.5 mm), so a frame 0.55 mm off is the noise's and one 1 mm off an outlier; Y, quiet,
+    keeps its own bound (its spread is not pooled with X's)."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    x_d = np.zeros((n, 6))
+    x = x_d.copy()
+    x[:, 3] = 1e-4 * rng.standard_normal(n)
+    x[:, 4] = 1e-6 * rng.standard_normal(n)
+    e = x[:, 3]
+    sigma = 1.4826 * np.median(np.abs(e - np.median(e)))
+    assert 0.9e-4 < sigma < 1.1e-4
+    x[10, 3] = np.median(e) + 5.5e-4  # within 6 sigma (~0.6 mm)
+    x[20, 3] = np.median(e) + 1.0e-3  # beyond
+    x[30, 4] = 6e-4  # Y: beyond 5 tolerances, its own spread tiny
+    found = outliers(x, x_d, TRANSLATIONS, TOL)
+    assert np.flatnonzero(found["mask"]).tolist() == [20, 30]
