@@ -73,7 +73,12 @@ def _add_design_command(sub) -> None:
     )
     dsg.add_argument("--out", default="results/design", help="output folder")
     add_runner_arguments(dsg)
-    dsg.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    dsg.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="hide the progress bars (the stages' lines, and how long the searches may take, "
+        "are still said)",
+    )
     dsg.set_defaults(func=_cmd_design, out_sub=("search", "diverged"), out_files=DESIGN_FILES)
 
 
@@ -107,7 +112,9 @@ def _cmd_design(args) -> int:
         maxiter=args.generations,
         base_scenario=args.scenario,
         progress=not args.no_progress,
-        say=None if args.no_progress else say_stage("design"),
+        # The stages' lines (how long the searches may take, each stage without a bar) are
+        # said with or without the bars: a search of minutes is never silent.
+        say=say_stage("design"),
     )
     for search in outcome.searches:
         name, margin = search.best.binding

@@ -35,6 +35,7 @@ from ..robot.kinematics import jacobian
 from ..run.plan import robot_geometry, robot_motor_limits, run_reference
 from ..run.scenario import ReferenceChoice, Scenario
 from ..run.scenario_io import load_scenario
+from .margins import CONTINUOUS_SHARE
 from .requirements import DesignRequirements
 from .variables import Design
 
@@ -248,7 +249,8 @@ def run_motion(job: MotionRun) -> dict:
         ``rms_torque_fraction`` (of the motor's continuous torque); ``peak_speed_rad_s`` (largest
         |theta_dot| = |J x_dot| of the true pose and rate) and ``peak_speed_fraction`` (of the
         no-load speed); ``within_margins`` (peak torque and speed within the shares the margins
-        leave); ``motor_peak_Nm``, ``motor_continuous_Nm``, ``motor_no_load_rad_s``,
+        leave, RMS torque within :data:`~.margins.CONTINUOUS_SHARE` of the continuous);
+        ``motor_peak_Nm``, ``motor_continuous_Nm``, ``motor_no_load_rad_s``,
         ``torque_scale_Nm`` (the LQI's); ``wall_s``.
     Raises:
         nothing the robot causes (a refusal or a guard trip is the row's ``reason``); a bug
@@ -297,6 +299,7 @@ def _figures(job: MotionRun, result) -> dict:
         "within_margins": bool(
             peak_T <= job.torque_share * servo.peak_torque_Nm
             and peak_speed <= job.speed_share * servo.no_load_speed_rad_s
+            and rms_T <= CONTINUOUS_SHARE * job.continuous_torque_Nm
         ),
     }
 

@@ -88,8 +88,13 @@ def _length_words(each_s: float, popsize: int, maxiter: int, cheapest: bool, mot
         f"the search: {candidates} candidates a motor ({motor} first"
         + (f", then up to {motors - 1} more from the cheapest up" if cheapest else "")
         + f"), {each_s:.2g} s a candidate at most on {workers} worker(s): up to "
-        f"{one / 60:.0f} min a motor, {motors * one / 60:.0f} min in all (a bar per motor)"
+        f"{_duration(one)} a motor, {_duration(motors * one)} in all (a bar per motor)"
     )
+
+
+def _duration(seconds: float) -> str:
+    """A duration in words: whole minutes from a minute up, else seconds ("40 s", "12 min")."""
+    return f"{seconds / 60:.0f} min" if seconds >= 59.5 else f"{max(seconds, 1):.0f} s"
 
 
 def run_design(
@@ -477,9 +482,25 @@ def _plot_front(out: Path, outcome: DesignOutcome) -> Path:
 
 def _plot_convergence(conv, main: SearchResult) -> None:
     """The best penalized objective of each generation of the search ``main``, the best so
-    far, and the share of candidates that meet the task (right axis)."""
+    far, and the share of candidates that meet the task (right axis); a search no candidate of
+    which met the task says so, with the margin its best design misses."""
     gens = np.array(main.generations)
     feasible_best = np.where(gens[:, 0] < 1e5, gens[:, 0], np.nan)
+    conv.set(xlabel="generation", title=f"search with {main.motor}")
+    if not np.isfinite(feasible_best).any():  # nothing to draw: said, never an empty axis
+        name, margin = main.best.binding
+        conv.text(
+            0.5,
+            0.5,
+            f"no candidate of its {len(gens)} generations met the task\n(its best by the "
+            f"search's rule misses on {name}:\nmargin {margin:+.3g})",
+            ha="center",
+            va="center",
+            transform=conv.transAxes,
+        )
+        conv.set_xlim(0, max(len(gens) - 1, 1))
+        conv.set_yticks([])
+        return
     conv.plot(
         np.arange(len(gens)),
         np.fmin.accumulate(np.nan_to_num(feasible_best, nan=np.inf)),
@@ -489,11 +510,7 @@ def _plot_convergence(conv, main: SearchResult) -> None:
     conv.plot(
         np.arange(len(gens)), feasible_best, "o", ms=3, color="tab:blue", label="generation's best"
     )
-    conv.set(
-        xlabel="generation",
-        ylabel=f"{main.objective} ({OBJECTIVES[main.objective][0]})",
-        title=f"search with {main.motor}",
-    )
+    conv.set(ylabel=f"{main.objective} ({OBJECTIVES[main.objective][0]})")
     ax2 = conv.twinx()
     ax2.plot(np.arange(len(gens)), 100 * gens[:, 1], color="tab:green", lw=0.8)
     ax2.set_ylabel("candidates meeting the task (%)", color="tab:green")

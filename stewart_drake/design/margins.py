@@ -12,8 +12,8 @@ of Deb's feasibility rule (:meth:`Evaluation.penalized`, :mod:`~.design_search`)
 
 Not judged here (:mod:`~.design_confirm` runs the best designs in closed loop): the feedback's
 tracking, the current loop's lag, encoder resolution; the continuous-torque margin is the RMS of
-each motion's torque against the motor's continuous rating, and holding a workspace pose is
-judged against the peak (a pose is not held for a known time).
+each motion's torque against :data:`CONTINUOUS_SHARE` of the motor's continuous rating, and
+holding a workspace pose is judged against the peak (a pose is not held for a known time).
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ MARGINS = {
     "(rod ends on the platform) included (relative)",
     "torque": "peak motor torque within the share of the motor's peak the margins leave",
     "speed": "peak crank speed within the share of the no-load speed the margins leave",
-    "continuous_torque": "each motion's RMS torque within the motor's continuous torque",
+    "continuous_torque": "each motion's RMS torque within CONTINUOUS_SHARE (80 %) of the "
+    "motor's continuous torque",
     "resolution": "the pose error of half an encoder count at every crank within the "
     "requirement (relative; inf: not asked)",
     "accuracy": "the encoders' floor (RMS per axis) within its share of the accuracy asked "
@@ -57,7 +58,11 @@ MARGINS = {
 }
 #: Version of :func:`evaluate`'s rules, part of a search's settings: a store written under other
 #: rules is refused rather than replayed.
-EVALUATION_VERSION = 3
+EVALUATION_VERSION = 4
+#: The share of a motor's continuous torque a motion's RMS torque may use: a motor run at its
+#: rating heats to its limit at the catalogue's ambient, with nothing left for a warm room, a
+#: worn gear or a heavier payload; a design is never recommended above it.
+CONTINUOUS_SHARE = 0.8
 #: Penalty added to the objective of a design that misses a margin (Deb's rule,
 #: :meth:`Evaluation.penalized`): larger than any objective a feasible design reaches.
 INFEASIBLE = 1e6
@@ -278,7 +283,9 @@ def _effort_margins(out: Evaluation, geometry: StewartGeometry, c: dict, motor, 
     )
     out.margins["torque"] = float(1.0 - peak / (task.torque_share * servo.peak_torque_Nm))
     out.margins["speed"] = float(1.0 - speed / (task.speed_share * servo.no_load_speed_rad_s))
-    out.margins["continuous_torque"] = float(1.0 - rms / motor.continuous_torque_Nm)
+    out.margins["continuous_torque"] = float(
+        1.0 - rms / (CONTINUOUS_SHARE * motor.continuous_torque_Nm)
+    )
     return True
 
 
