@@ -370,7 +370,7 @@ def test_an_encoder_logs_record_says_whether_its_bus_was_emulated(tmp_path, bus,
     assert data["emulated"] is emulated
     first = page_texts(next((out / "records").glob("*.pdf")))[0]
     first = " ".join(first.replace("\\(", "(").replace("\\)", ")").split())
-    said = f"its run wrote of its bus: {bus}." if bus else "whether its bus was emulated is not"
+    said = f"Its run wrote of its bus: {bus}." if bus else "Whether its bus was emulated is not"
     assert said in first and said in data["measuring_device"], first
 
 

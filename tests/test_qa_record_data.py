@@ -210,13 +210,13 @@ def test_the_measuring_device_says_whether_it_is_independent_and_emulated():
         log = motion(kind, "emulated: ideal servos")
         words, independent = device_words(log)
         assert independent is False and "not independent of the robot" in words
-        assert "its run wrote of its bus: emulated: ideal servos." in words
+        assert "Its run wrote of its bus: emulated: ideal servos." in words
         assert emulated(log) is True
     real = motion("encoders", "the servos on /dev/ttyUSB0, ...")
     assert emulated(real) is False
     unsaid = motion("encoders", "")
     assert emulated(unsaid) is None
-    assert "whether its bus was emulated is not written" in device_words(unsaid)[0]
+    assert "Whether its bus was emulated is not written" in device_words(unsaid)[0]
     d = data(verification(np.zeros(6), kind="encoders", bus="emulated: x"))
     assert d["independent"] is False and d["emulated"] is True
 

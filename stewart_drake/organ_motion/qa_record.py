@@ -168,9 +168,9 @@ def device_words(measured) -> tuple[str, bool]:
     wrong: forward kinematics of the model turn them into poses)."""
     if measured.from_the_robot:
         bus = (
-            f"its run wrote of its bus: {measured.bus}"
+            f"Its run wrote of its bus: {measured.bus}"
             if measured.bus
-            else "whether its bus was emulated is not written in the log"
+            else "Whether its bus was emulated is not written in the log"
         )
         return (
             "the robot's own encoder log (forward kinematics of the robot's model): not "
