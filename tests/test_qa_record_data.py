@@ -403,6 +403,7 @@ def drawn(monkeypatch):
         path.write_bytes(b"%PDF-stand-in")
 
     monkeypatch.setattr(qa_record, "record_pdf", pdf)
+    monkeypatch.setattr(qa_record, "_reportlab", lambda: None)  # the stand-in needs none
     monkeypatch.setattr(qa_record_figure, "record_figure", lambda ver, tol, act: b"png")
     return made
 
