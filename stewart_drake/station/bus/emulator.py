@@ -16,6 +16,7 @@ docs/hardware_bus.md, "What is emulated".
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 import select
@@ -169,11 +170,14 @@ class BusEmulator(FirmwareLoops):
 
     def start(self) -> BusEmulator:
         """Start answering and moving (two daemon threads), the servos' firmware compiled (or
-        loaded) first: not in the middle of a step."""
+        loaded) first: not in the middle of a step. The caller's unreachable objects are
+        collected here, on its own thread: otherwise the bus thread's next allocation may
+        destroy them (a Drake diagram built and dropped before) in the middle of a reply."""
         if self._thread is None:
             from .servo_firmware import warm_up
 
             warm_up()
+            gc.collect()
             self._thread = threading.Thread(
                 target=self._run, name="dynamixel-bus-emulator", daemon=True
             )
