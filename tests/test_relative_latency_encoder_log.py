@@ -359,13 +359,13 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
     translations, X: its superior-inferior axis), and the Diagram's pair report
     (``sync_figures.relative_latency``) on the session's own samples gives each lag and their
     difference within 0.5 ms."""
-    from stewart_drake.live import session
+    from stewart_drake.live import session_surrogate
     from stewart_drake.station.surrogate import encoder_relative_latency
     from stewart_drake.station.surrogate.axis import SurrogateAxis
     from stewart_drake.station.surrogate.sync_figures import relative_latency
 
     judged, matched = [], []
-    measure, lag_match = encoder_relative_latency.relative_latency, session._lag_match
+    measure, lag_match = encoder_relative_latency.relative_latency, session_surrogate.lag_match
 
     def measure_and_keep(*args, **kwargs):
         judged.append((args, kwargs))
@@ -376,7 +376,7 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
         return matched[-1]
 
     monkeypatch.setattr(encoder_relative_latency, "relative_latency", measure_and_keep)
-    monkeypatch.setattr(session, "_lag_match", lag_match_and_keep)
+    monkeypatch.setattr(session_surrogate, "lag_match", lag_match_and_keep)
     from conftest import LOADED_MACHINE_BUS, bus_emulator, extra_missing
 
     if extra_missing("robot"):

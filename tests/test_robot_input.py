@@ -573,3 +573,26 @@ def test_a_run_of_another_scenario_never_replaces_the_default_robots_files():
     assert _scenario_suffix("phantom_bus") == "_phantom_bus"
     assert _scenario_suffix("/lab/robots/my bot.v2.yaml") == "_my_bot_v2"
     assert _scenario_suffix("bus.yml") == "_bus"
+
+
+def test_a_bus_is_said_emulated_only_while_an_emulator_this_process_started_serves_it():
+    """What a run's encoder log says of its bus (``emulator_process.bus_words``): a port this
+    process's ``start_emulator`` serves is the emulator's, with its servos in words (the same
+    words the run prints); once it is closed, or for any other port, the servos on that port,
+    not emulated by this run."""
+    from stewart_drake.live.emulator_process import bus_words, start_emulator
+    from stewart_drake.organ_motion.measured_motion import EMULATED_BUS
+    from stewart_drake.station.bus.servos import DynamixelBusConfig
+
+    scenario = load_scenario(ROBOT_SCENARIO)
+    scenario.bus = DynamixelBusConfig(**LOADED_MACHINE_BUS)
+    assert bus_words("/dev/ttyUSB0") == "the servos on /dev/ttyUSB0, not emulated by this run"
+    emulator = start_emulator(scenario, X_HOME)
+    try:
+        port = scenario.bus.port
+        assert port == emulator.port and port != LOADED_MACHINE_BUS.get("port")
+        assert bus_words(port) == EMULATED_BUS + emulator.servos.summary()
+        assert bus_words("/dev/ttyUSB0").startswith("the servos on /dev/ttyUSB0")
+    finally:
+        emulator.close()
+    assert bus_words(port) == f"the servos on {port}, not emulated by this run"

@@ -205,9 +205,9 @@ def _cmd_robot(args) -> int:
         _check_emulated_pose(scenario, args.emulate.pose)
     if surrogate is not None:
         scenario.validate()
-        from .session import _check_surrogate_trace
+        from .session_surrogate import check_surrogate_trace
 
-        _check_surrogate_trace(scenario, surrogate)
+        check_surrogate_trace(scenario, surrogate)
     if not args.dry_run and args.calibrate is None:
         # Loaded (or compiled) before anything is powered: a first load inside the first
         # control period would trip our watchdog.
@@ -367,13 +367,11 @@ def _robot_budget(args, scenario) -> int:
 def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
-    from ..organ_motion.measured_motion import EMULATED_BUS
     from .emulator_process import EMULATED_LOOP_TIMEOUT_S, start_emulator
     from .session import end_line, run_on_robot
 
     emulator = None
     held: dict[str, Any] = {}  # the session's station diagram, kept just before the torque goes on
-    bus_words = f"the servos on {scenario.bus.port}, not emulated by this run"
     try:
         if args.emulate is not None:
             print(
@@ -395,7 +393,6 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 f"bus emulator on {scenario.bus.port} (the robot's Drake plant {clock}): "
                 f"{emulator.servos.summary()}"
             )
-            bus_words = EMULATED_BUS + emulator.servos.summary()
 
         if args.calibrate is not None or args.dry_run:
             return _read_only(args, scenario)
@@ -408,7 +405,7 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
         if args.follow is not None:
             from .follow_command import follow_from_arguments
 
-            run = follow_from_arguments(args.follow, args, scenario, out, stem, signals, bus_words)
+            run = follow_from_arguments(args.follow, args, scenario, out, stem, signals)
         elif args.teleop:
             from .session import teleop_on_robot
 
@@ -433,7 +430,6 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 signals=signals,
                 realtime=args.realtime,
                 surrogate=surrogate,
-                bus_words=bus_words,
                 before_torque=lambda sd, simulator: held.update(sd=sd),
             )
     finally:

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..base.errors import BusError
+from ..organ_motion.measured_motion import EMULATED_BUS
 from ..robot.kinematics import X_HOME
 
 
@@ -344,6 +345,8 @@ class EmulatorProcess:
         """Stop the child and collect its record. Idempotent."""
         if self._process is None:
             return
+        if self.port is not None:
+            _EMULATED_PORTS.pop(self.port, None)
         try:
             if self._process.is_alive():
                 self._conn.send("stop")
@@ -414,5 +417,20 @@ def start_emulator(scenario, x0, realtime: bool = False) -> EmulatorProcess:
         baud_rate=bus.baud_rate,
         period_s=scenario.control_period_s if scenario.emulator.clock == "loop" else None,
     ).start()
-    bus.port = emulator.port
+    bus.port = port = str(emulator.port)
+    _EMULATED_PORTS[port] = EMULATED_BUS + servos.summary()
     return emulator
+
+
+#: The ports of the bus emulators :func:`start_emulator` started in this process and that are not
+#: closed, each with its servos in words: what a run on that port writes of its bus.
+_EMULATED_PORTS: dict[str, str] = {}
+
+
+def bus_words(port: str) -> str:
+    """What this process knows of the bus on ``port``, in the words a run's encoder log keeps
+    (:func:`~stewart_drake.calibration.join.write_encoder_log`'s ``bus``): ``emulated: `` and
+    the emulator's servos when :func:`start_emulator` serves it, else the servos on ``port``,
+    not emulated by this run (a bus emulator this process did not start cannot be told from
+    servos, so that is all it says)."""
+    return _EMULATED_PORTS.get(port, f"the servos on {port}, not emulated by this run")

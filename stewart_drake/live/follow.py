@@ -312,7 +312,6 @@ def follow_on_robot(
     signals=None,
     before_torque: Callable | None = None,
     realtime: bool = False,
-    bus_words: str = "",
 ):
     """Follow the poses published on ``channel`` with the robot of ``scenario.bus`` (module
     docstring); never leaves the torque on.
@@ -335,8 +334,6 @@ def follow_on_robot(
             torque is enabled (``reference``: the :class:`FollowReference`).
         realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks, as
             :func:`~.session.run_on_robot` does (a refusal said in one line; the run goes on).
-        bus_words: what the bus is, written in the encoder log, as
-            :func:`~.session.run_on_robot`'s.
     Returns:
         :class:`~.session.RobotRun`: ok and exit code 0 when ``duration_s`` was followed to its
         end; a source that failed (or never sent) ends it with ``LiveSourceError: ...``, 1.
@@ -364,7 +361,7 @@ def follow_on_robot(
     source = LcmPoseSource(lcm, channel)
     start = admissible_start(scenario)  # opens and closes the port; the torque stays off
     session = (scenario, start, source, follower, duration_s, first_sample_s, timeout)
-    rest = (loop_timeout_s, limits, Path(out), stem, say, before_torque, realtime, bus_words)
+    rest = (loop_timeout_s, limits, Path(out), stem, say, before_torque, realtime)
     if signals is not None:
         return _follow(*session, *rest, signals)
     with SessionSignals() as own:
@@ -373,7 +370,7 @@ def follow_on_robot(
 
 def _follow(
     scenario, start, source, follower, duration_s, first_sample_s, timeout, loop_timeout_s,
-    limits, out, stem, say, before_torque, realtime, bus_words, signals,
+    limits, out, stem, say, before_torque, realtime, signals,
 ):  # fmt: skip
     """The powered part of :func:`follow_on_robot`."""
     from ..station.bus.driver import DynamixelBus
@@ -423,15 +420,7 @@ def _follow(
         _stop(bus, None if sd is None else sd.station.driver, ended)
     if powered:
         say(reference.summary(simulator.get_context()))
-        _keep_logs(
-            ended,
-            sd,
-            simulator,
-            wall,
-            out / f"{stem}.npz",
-            _NoReferenceClock(),
-            bus_words=bus_words,
-        )
+        _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", _NoReferenceClock())
     return ended
 
 

@@ -130,9 +130,7 @@ def check_follow_arguments(args) -> FollowOptions | None:
     return FollowOptions(channel, latency, rate, args.predictor or DEFAULT_PREDICTOR, url)
 
 
-def follow_from_arguments(
-    options: FollowOptions, args, scenario, out, stem, signals, bus_words: str = ""
-):
+def follow_from_arguments(options: FollowOptions, args, scenario, out, stem, signals):
     """``robot --follow-lcm``'s session (:func:`~.follow.follow_on_robot`) on the checked
     ``options``, listening on their URL (:func:`~stewart_drake.station.lcm_publish.make_lcm`)."""
     from ..station.lcm_publish import make_lcm
@@ -153,7 +151,6 @@ def follow_from_arguments(
         stem=stem,
         signals=signals,
         realtime=args.realtime,
-        bus_words=bus_words,
     )
 
 

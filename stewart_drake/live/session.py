@@ -45,6 +45,7 @@ from ..references.homing import HOME_S, HomingReference
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
 from .realtime import RealtimeLoop
 from .session_signals import SessionSignals, signal_name
+from .session_surrogate import check_surrogate_trace, command_surrogate, relative_latency_of_run
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
 
 if TYPE_CHECKING:
@@ -112,7 +113,6 @@ def run_on_robot(
     signals: SessionSignals | None = None,
     realtime: bool = False,
     surrogate=None,
-    bus_words: str = "",
 ) -> RobotRun:
     """Run the scenario's closed loop on the robot (the safety sequence of the module's
     docstring); never leaves the torque on.
@@ -144,10 +144,6 @@ def run_on_robot(
             path checked against the stage's travel and speed before the torque goes on; the
             encoder log gains its columns and the run its relative latency. None: a surrogate's
             servo on the bus holds where it was read.
-        bus_words: what the bus is (its servos real, or the emulator's, in words), written in
-            the encoder log (:func:`~stewart_drake.calibration.join.write_encoder_log`) for
-            the verdicts and records that read it; "" writes none (a log that says nothing of
-            its bus).
     Returns:
         :class:`RobotRun` (exit_code 0 only when the reference ran to its end and no signal
         came; a signal after the torque-off is named in ``reason`` and makes it 128 + n).
@@ -171,40 +167,15 @@ def run_on_robot(
         )
     target = as_trajectory(reference) if reference is not None else run_reference(scenario)
     if surrogate is not None:
-        _check_surrogate_trace(scenario, surrogate)
+        check_surrogate_trace(scenario, surrogate)
     start = admissible_start(scenario)  # opens and closes the port; the torque stays off
     homed = HomingReference(target, start.x, home_s, t_end=scenario.duration_s)
     homed_run = dataclasses.replace(scenario, duration_s=homed.duration_s + hold_s)
     session = (homed_run, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
     if signals is not None:
-        return _run(*session, before_torque, signals, realtime, surrogate, bus_words)
+        return _run(*session, before_torque, signals, realtime, surrogate)
     with SessionSignals() as own:
-        return own.settle(_run(*session, before_torque, own, realtime, surrogate, bus_words))
-
-
-def _check_surrogate_trace(scenario, surrogate) -> None:
-    """Refuse, before the port is opened, a surrogate's trace without a surrogate's servo on
-    the bus, shorter than the run, or outside the stage's travel or speed.
-
-    Raises:
-        InvalidConfigError: names what and by how much.
-    """
-    from ..station.surrogate.bus_servo import check_surrogate_path
-
-    config = scenario.bus.surrogate
-    if config is None:
-        raise InvalidConfigError(
-            "--surrogate drives the surrogate's servo on the bus: the scenario's bus has no "
-            "surrogate section (bus.surrogate: its id, model, lead and travel; docs/robot.md)"
-        )
-    if surrogate.duration_s < scenario.duration_s - 1e-9:
-        raise InvalidConfigError(
-            f"--surrogate {surrogate.path} lasts {surrogate.duration_s:g} s, the run "
-            f"{scenario.duration_s:g} s: give --duration {surrogate.duration_s:g} or less"
-        )
-    t = np.arange(0.0, scenario.duration_s, 0.5 * scenario.control_period_s)
-    s, v, _ = surrogate.evaluate(t)
-    check_surrogate_path(config, s, v, f"--surrogate {surrogate.path}")
+        return own.settle(_run(*session, before_torque, own, realtime, surrogate))
 
 
 def _run(
@@ -221,7 +192,6 @@ def _run(
     signals,
     realtime,
     surrogate=None,
-    bus_words="",
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
     from ..run.simulate import advance
@@ -237,7 +207,7 @@ def _run(
         station.assemble(context, start.x)  # the driver holds its first reading
         _check_still(sd, bus, start)
         if surrogate is not None:
-            _command_surrogate(station.driver, surrogate, homed, scenario)
+            command_surrogate(station.driver, surrogate, homed, scenario)
         if before_torque is not None:
             before_torque(sd, simulator)
         powered = True
@@ -261,53 +231,8 @@ def _run(
         _stop(bus, station.driver, ended)
     if not powered:
         return ended
-    _keep_logs(
-        ended, sd, simulator, wall, out / f"{stem}.npz", homed, surrogate is not None, bus_words
-    )
+    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", homed, surrogate is not None)
     return ended
-
-
-def _command_surrogate(driver, surrogate, homed, scenario) -> None:
-    """Give the driver's surrogate its command on the run's clock from where its carriage was read
-    (:class:`~stewart_drake.station.surrogate.carriage.SurrogateCommand`, sampled on the control
-    period's grid over the run's ``duration_s``), the whole path, lead-in included, checked
-    against the stage first.
-
-    Raises:
-        InvalidConfigError: the carriage rests outside the travel, or the lead-in is too fast.
-    """
-    from ..station.surrogate.bus_servo import check_surrogate_path
-    from ..station.surrogate.carriage import SurrogateCommand
-
-    drive, period_s = driver.surrogate, scenario.control_period_s
-    command = SurrogateCommand(surrogate, homed, drive.held[0])
-    s, v, _ = command.evaluate(np.arange(0.0, homed.duration_s, 0.5 * period_s))
-    check_surrogate_path(drive.config, s, v, "the surrogate's lead-in and trace")
-    drive.command = command.sampled(period_s, scenario.duration_s)
-    #: The carriage's reference on the run's clock, before any lag matching's delay: what
-    #: the run's relative latency judges the carriage against.
-    drive.reference = command
-    if drive.config.match_platform_lag:
-        drive.lag_match = _lag_match(homed, period_s, scenario.duration_s)
-
-
-def _lag_match(homed, period_s: float, t_end: float):
-    """The platform's lag estimator (:class:`~..station.surrogate.lag_matching.PlatformLagMatch`)
-    on its reference sampled every period to ``t_end``, along the principal direction of its
-    translations after the lead-in (:func:`~stewart_drake.base.signals.principal_direction`:
-    the direction the run's relative latency judges, and the Diagram's lag matching follows)."""
-    from ..base.signals import principal_direction
-    from ..station.surrogate.lag_matching import PlatformLagMatch
-
-    t = np.arange(int(np.ceil(t_end / period_s)) + 1) * period_s
-    x, v, _ = homed.evaluate(t)
-    after = t >= homed.home_s
-    moving = x[after] if np.count_nonzero(after) > 1 else x
-    u = principal_direction(moving)
-    r, r_dot = x[:, 3:6] @ u, v[:, 3:6] @ u
-    if not np.ptp(moving[:, 3:6] @ u) > 0:  # a reference that holds still has no lag to learn
-        r, r_dot = np.zeros_like(r), np.zeros_like(r_dot)
-    return PlatformLagMatch(period_s, r, r_dot, u)
 
 
 def _stop(bus, driver, ended: RobotRun) -> None:
@@ -381,7 +306,6 @@ def _keep_logs(
     path: Path,
     homed,
     judge: bool = False,
-    bus_words: str = "",
 ) -> None:
     """The run's metrics and its logs saved at ``path`` into ``ended``, and the encoders'
     readings beside it (their times on the computer's clock, s since the epoch, and on the
@@ -391,6 +315,7 @@ def _keep_logs(
     ``ended.reason``, never raised."""
     from ..calibration.join import encoder_log_path, write_encoder_log
     from ..run.result import finish_result, read_run, save_result
+    from .emulator_process import bus_words
 
     try:
         logs = read_run(sd, simulator.get_context())
@@ -411,40 +336,19 @@ def _keep_logs(
             reference = driver.surrogate.reference
             s_ref = reference.evaluate(t)[0] if reference is not None else s_cmd
             carriage = (s, s_cmd, s_ref, driver.surrogate_delays())
+        bus = bus_words(sd.station.bus.port_name)  # emulated or not, as far as the run knows
         ended.encoder_log = write_encoder_log(
-            encoder_log_path(path), t_read + epoch, t, tau, q, surrogate=carriage, bus=bus_words
+            encoder_log_path(path), t_read + epoch, t, tau, q, surrogate=carriage, bus=bus
         )
         if judge and carriage is not None:
             try:
-                ended.relative_latency = _judge(driver, homed, t, carriage)
+                ended.relative_latency = relative_latency_of_run(driver, homed, t, carriage)
                 ended.relative_latency_line = ended.relative_latency.line()
             except InvalidConfigError as err:  # too short a run to measure it
                 ended.relative_latency_line = f"relative latency not measured: {err}"
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
         ended.exit_code = ended.exit_code or 1  # a run without its record is not a success
-
-
-def _judge(driver, homed, t, carriage):
-    """The relative latency of the run's periods after the homing lead-in, from the
-    encoders, held to one control period."""
-    from ..station.surrogate.encoder_relative_latency import relative_latency
-
-    x_c = homed.evaluate(t)[0]
-    return relative_latency(
-        t,
-        driver.pose_readings(),
-        x_c,
-        carriage[0],
-        carriage[1],
-        s_reference=carriage[2],
-        delays_s=carriage[3] if driver.surrogate.lag_match is not None else None,
-        tolerance_s=driver.period_s,
-        t_from=homed.home_s,
-        s_count_m=driver.surrogate.config.metres_per_count,
-        # A crank's count moves the platform by about its crank's length times the count.
-        x_count_m=0.01 * driver.quantum_rad,
-    )
 
 
 def _drive(
