@@ -23,14 +23,15 @@ from ..organ_motion.measured_verdict import (
 #: squared distance, at its best shift) runs the wrong way (as
 #: :func:`~stewart_drake.organ_motion.measured_verdict.causes_of` says it).
 REVERSED_RATIO = 0.25
-#: Two measurements are swapped when each matches the other's reference this many times better
-#: (least mean squared distance, each less its mean) than its own.
+#: Two measurements are swapped when each one's mean squared distance (each less its mean) to the
+#: other's reference is under this share of its distance to its own: 4 times nearer the other's.
 SWAPPED_RATIO = 0.25
-#: One platform played the other's trace when its measurement comes this many times nearer the
-#: other's reference than its own (the inverse of the ratio: 1.25; a right pair's measurements
-#: come about 1.8 times nearer their own: 0.54 and 0.55 on the example pair, one that played the
-#: other's trace 1.9 times nearer the other's; on IntERAct's 21 right pairs 3.1 to 109 times
-#: nearer their own) while the other measurement is nearer its own.
+#: One platform played the other's trace when its measurement's mean squared distance to the
+#: other's reference is at most this share of its distance to its own (it comes 1.25 times nearer
+#: the other's reference), while the other measurement is nearer its own. A right pair's
+#: measurements come about 1.8 times nearer their own (shares 0.54 and 0.55 the other way on the
+#: example pair; IntERAct's 21 right pairs 3.1 to 109 times nearer their own); one that played the
+#: other's trace 1.86 times nearer the other's.
 PLAYED_RATIO = 0.8
 #: Shifts searched around the internal's for the swap's test, s either way.
 SWAP_SEARCH_S = 5.0
@@ -133,14 +134,14 @@ def swapped_words(
     """The cause when the two measurements are swapped, or one platform played the other's
     trace, else None. Each measurement is matched (its axis along which its reference moves
     most, at its best shift within :data:`SWAP_SEARCH_S` of ``around_s``, each less its mean) to
-    its own reference and to the other's; swapped when each matches the other's reference
-    :data:`SWAPPED_RATIO` times better, or when each matches the other's at least as well and,
-    exchanged, the pair's relative latency is smaller than as given; one played the other's
-    trace when it alone matches the other's reference :data:`PLAYED_RATIO` times better than its
-    own (the other nearer its own). Looked for on every pair, a PASS included: a bound on the
-    relative latency wide enough to hold such a pair's would pass it otherwise (a surrogate
-    platform given the internal trace measures 450 ms late on the example pair, within a 0.6 s
-    bound).
+    its own reference and to the other's; swapped when each one's distance to the other's
+    reference is under :data:`SWAPPED_RATIO` of its distance to its own, or when each matches the
+    other's at least as well and, exchanged, the pair's relative latency is smaller than as
+    given; one played the other's trace when it alone comes nearer the other's reference, its
+    distance to it at most :data:`PLAYED_RATIO` of its distance to its own (the other nearer its
+    own). Looked for on every pair, a PASS included: a bound on the relative latency wide enough
+    to hold such a pair's would pass it otherwise (a surrogate platform given the internal trace
+    measures 450 ms late on the example pair, within a 0.6 s bound).
 
     Args:
         pair_refs: (internal reference, surrogate reference). pair_measured: (internal
@@ -181,9 +182,10 @@ def swapped_words(
 
 
 def _played_words(ratios: list, names: tuple) -> str | None:
-    """The cause when one measurement alone comes :data:`PLAYED_RATIO` times nearer the other's
-    reference than its own (``ratios``: each one's mean squared distance to its own reference
-    over the other's), the other nearer its own; else None."""
+    """The cause when one measurement alone comes nearer the other's reference, its distance to
+    it at most :data:`PLAYED_RATIO` of its distance to its own (``ratios``: each one's mean
+    squared distance to its own reference over the other's), the other nearer its own; else
+    None."""
     played = [r >= 1.0 / PLAYED_RATIO for r in ratios]
     if played[0] == played[1]:
         return None
