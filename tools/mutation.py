@@ -143,6 +143,8 @@ MODULES = {
         "tests/test_relative_latency.py",
         "tests/test_pair_judgement.py",
     ),
+    # The causes a pair's FAIL names, each at its edge on motions the test writes out.
+    "stewart_drake/live/pair_causes.py": ("tests/test_pair_causes.py",),
     # The crank servo of the bus robots: its law and estimator (compiled, run as Python), its
     # LeafSystem, its design and its driver, against the law written out in the test; its
     # margins against the loop's characteristic roots; the servos' own loop's goal stream.

@@ -201,9 +201,6 @@ def _played_words(ratios: list, names: tuple) -> str | None:
     )
 
 
-# -- the verdict -----------------------------------------------------------------------------------
-
-
 __all__ = [
     "REVERSED_RATIO",
     "SWAPPED_RATIO",
