@@ -142,3 +142,76 @@ def test_refusals():
         robust_closed_loop(loop, 0.0)
     with pytest.raises(InvalidConfigError, match="extra_delay_s"):
         robust_closed_loop(loop, 1.0, -1e-3)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_a_loop_designed_for_more_periods_of_delay_is_the_designs_at_its_gain(d):
+    """Two and three periods of pending commands: at gain 1 and no extra delay the matrix's
+    poles are the design's and one more at 0 (the command just gone out)."""
+    loop = design_loop(0.01, d, 2.0, 10.0, 3.0)
+    # Characteristic polynomials, not roots: the design's own d poles at 0 split numerically.
+    mine = np.poly(robust_closed_loop(loop, 1.0, 0.0))
+    designed = np.poly(np.append(closed_loop_poles(loop), 0.0))
+    np.testing.assert_allclose(mine.real, designed.real, atol=1e-9)
+
+
+@pytest.mark.parametrize("d, extra_s", [(2, 0.0), (2, 0.015), (3, 0.004)])
+def test_with_more_periods_of_delay_the_gain_range_is_the_loop_in_times(d, extra_s):
+    """The range's ends with two and three periods designed for, and an extra delay of more
+    than a period (m = 1, tau = h / 2): the loop run in time converges just inside, grows just
+    outside."""
+    loop = design_loop(0.01, d, 2.0, 10.0, 3.0)
+    lo, hi = gain_range(loop, extra_s)
+    assert lo < 1.0 < hi
+    assert _simulated_growth(loop, 0.97 * hi, extra_s) < 1.0
+    assert _simulated_growth(loop, 1.05 * hi, extra_s) > 1.0
+    assert _simulated_growth(loop, 1.03 * lo, extra_s) < 1.0
+    assert _simulated_growth(loop, 0.95 * lo, extra_s) > 1.0
+
+
+@pytest.mark.parametrize("gain", [0.5, 1.5])
+def test_the_delay_margin_at_another_gain_is_the_loop_in_times(gain):
+    loop = design_loop(0.01, 1, 6.0, 15.0, 3.0)
+    margin = delay_margin_s(loop, gain)
+    assert 0.0 < margin < 0.1 and margin != delay_margin_s(loop, 1.0)
+    assert _simulated_growth(loop, gain, 0.95 * margin) < 1.0
+    assert _simulated_growth(loop, gain, 1.06 * margin) > 1.0
+
+
+def test_the_delay_margin_is_bisected_to_10_us_capped_and_zero_when_unstable():
+    loop = design_loop(0.01, 1, 6.0, 15.0, 3.0)
+    margin = delay_margin_s(loop)
+    assert is_stable(loop, 1.0, margin) and not is_stable(loop, 1.0, margin + 2e-5)
+    assert delay_margin_s(loop, 1.0, longest_s=0.002) == 0.002  # stable to the end searched
+    assert not is_stable(loop, 100.0)
+    assert delay_margin_s(loop, 100.0) == 0.0
+
+
+def test_without_a_gain_or_a_delay_the_loop_is_the_designs_plant():
+    loop = design_loop(0.01, 1, 6.0, 15.0, 3.0)
+    np.testing.assert_array_equal(robust_closed_loop(loop), robust_closed_loop(loop, 1.0, 0.0))
+    from stewart_drake.control.servo.margins import spectral_radius
+
+    assert spectral_radius(loop) == spectral_radius(loop, 1.0, 0.0) < 1.0
+    assert is_stable(loop) and gain_range(loop) == gain_range(loop, 0.0)
+
+
+def test_analyze_says_each_figure_where_its_label_is():
+    """margin_lines word for word: the loop's design, each range under its delay, the delay
+    margin at each end of the required range and at 1, and whether it holds."""
+    loop = design_loop(0.01, 1, 4.0, 15.0, 3.0)
+    (lo0, hi0), (lo, hi) = gain_range(loop, 0.0), gain_range(loop, EXTRA_DELAY_S)
+    margins = [delay_margin_s(loop, g) for g in (0.5, 1.0, 2.0)]
+    assert len(set(margins)) == 3 and lo0 < lo < 1.0 < hi < hi0
+    holds = lo <= 0.5 and hi >= 2.0
+    assert margin_lines(loop) == [
+        "the crank servo's loop (f_c 4 Hz, estimator 15 Hz, 10 ms, 1 period(s) of delay "
+        "designed for):",
+        f"  stable for a plant gain (true / believed torque per command) of {lo0:.2f} to "
+        f"{hi0:.2f}; with 6 ms more delay, {lo:.2f} to {hi:.2f}",
+        f"  delay it takes beyond the design's: {1e3 * margins[0]:.1f} ms at gain 0.5, "
+        f"{1e3 * margins[1]:.1f} ms at gain 1, {1e3 * margins[2]:.1f} ms at gain 2",
+        f"  {'holds' if holds else 'does NOT hold'} what a shipped servo must: gain 0.5 to 2 "
+        "with 6 ms more delay (the catalogue's rotor within a factor of 2, the bus's own delay "
+        "and 4 ms)",
+    ]
