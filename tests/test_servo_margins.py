@@ -64,6 +64,17 @@ def _simulated_growth(loop, gain: float, extra_s: float, periods: int = 1500) ->
     return float(h_arr[-200:].max() / h_arr[100:300].max())
 
 
+def _holds_at_its_ends(loop, extra_s: float) -> None:
+    """Just inside each end of the loop's gain range with ``extra_s`` the loop run in time
+    converges, just outside it grows."""
+    lo, hi = gain_range(loop, extra_s)
+    assert lo < 1.0 < hi
+    assert _simulated_growth(loop, 0.97 * hi, extra_s) < 1.0
+    assert _simulated_growth(loop, 1.05 * hi, extra_s) > 1.0
+    assert _simulated_growth(loop, 1.03 * lo, extra_s) < 1.0
+    assert _simulated_growth(loop, 0.95 * lo, extra_s) > 1.0
+
+
 def test_at_the_designs_gain_and_delay_the_loop_is_the_designs():
     loop = design_loop(0.01, 1, 5.0, 15.0, 3.0)
     T = robust_closed_loop(loop, 1.0, 0.0)
@@ -82,12 +93,7 @@ def test_the_gain_range_is_where_the_loop_in_time_stops_converging(extra_s):
     """Just inside each end of the range the loop run in time converges, just outside it
     grows: the range is the loop's, not an artefact of the matrix."""
     loop = design_loop(0.01, 1, 4.0, 15.0, 3.0)
-    lo, hi = gain_range(loop, extra_s)
-    assert lo < 1.0 < hi
-    assert _simulated_growth(loop, 0.97 * hi, extra_s) < 1.0
-    assert _simulated_growth(loop, 1.05 * hi, extra_s) > 1.0
-    assert _simulated_growth(loop, 1.03 * lo, extra_s) < 1.0
-    assert _simulated_growth(loop, 0.95 * lo, extra_s) > 1.0
+    _holds_at_its_ends(loop, extra_s)
 
 
 def test_the_delay_margin_is_where_the_loop_in_time_stops_converging():
@@ -161,12 +167,7 @@ def test_with_more_periods_of_delay_the_gain_range_is_the_loop_in_times(d, extra
     than a period (m = 1, tau = h / 2): the loop run in time converges just inside, grows just
     outside."""
     loop = design_loop(0.01, d, 2.0, 10.0, 3.0)
-    lo, hi = gain_range(loop, extra_s)
-    assert lo < 1.0 < hi
-    assert _simulated_growth(loop, 0.97 * hi, extra_s) < 1.0
-    assert _simulated_growth(loop, 1.05 * hi, extra_s) > 1.0
-    assert _simulated_growth(loop, 1.03 * lo, extra_s) < 1.0
-    assert _simulated_growth(loop, 0.95 * lo, extra_s) > 1.0
+    _holds_at_its_ends(loop, extra_s)
 
 
 @pytest.mark.parametrize("gain", [0.5, 1.5])
