@@ -607,3 +607,49 @@ def test_a_delay_the_servo_cannot_carry_is_refused_and_a_design_error_is_prefixe
         CrankServoDriver().validate(0.01, MAX_DELAY_PERIODS + 1)
     with pytest.raises(InvalidConfigError, match=r"^ctl\.\S"):
         CrankServoDriver(bandwidth_hz=30.0).validate(0.01, 1, prefix="ctl.")
+
+
+def test_the_warm_up_passes_each_kernel_the_types_the_controller_and_the_streamer_pass(
+    geometry, monkeypatch
+):
+    """numba compiles one version of a kernel per argument types (read-only or not, the
+    dimensions, the scalars' kinds), so the warm-up must pass each kernel what the running loop
+    passes, or a control period compiles one with the torque on. The types (``numba.typeof``)
+    of each kernel's arguments are recorded from :func:`kernels.warm_up`, then from a
+    controller's updates (to its first inertia re-schedule) and a goal streamer's first goals,
+    and are equal kernel by kernel."""
+    import numba
+
+    from stewart_drake.control.servo import goal_stream, kernels
+    from stewart_drake.control.servo.goal_stream import CrankGoalStreamer
+    from stewart_drake.robot import path_kernels
+
+    phase, calls = ["warm_up"], {}
+
+    def recording(name, fn):
+        def record(*args):
+            calls.setdefault((phase[0], name), tuple(str(numba.typeof(a)) for a in args))
+            return fn(*args)
+
+        return record
+
+    for module, name in (
+        (kernels, "step"),
+        (kernels, "crank_reference"),
+        (goal_stream, "crank_reference"),
+        (path_kernels, "joint_inertia"),
+    ):
+        monkeypatch.setattr(module, name, recording(name, getattr(module, name)))
+    kernels.warm_up()
+    phase[0] = "run"
+    controller = _controller(geometry)
+    context = controller.CreateDefaultContext()
+    rng = np.random.default_rng(3)
+    for _ in range(controller.steps_per_schedule + 1):
+        _update(controller, context, *_inputs(geometry, rng))
+    CrankGoalStreamer(geometry, 0.01, 0.0005, 0.014, X_HOME)
+    names = ("step", "crank_reference", "joint_inertia")
+    assert sorted(calls) == sorted((p, n) for p in ("warm_up", "run") for n in names)
+    for name in names:
+        assert calls["warm_up", name] == calls["run", name], name
+    assert calls["run", "step"][0] == "readonly array(float64, 1d, C)"  # the constants
