@@ -653,3 +653,70 @@ def test_the_warm_up_passes_each_kernel_the_types_the_controller_and_the_streame
     for name in names:
         assert calls["warm_up", name] == calls["run", name], name
     assert calls["run", "step"][0] == "readonly array(float64, 1d, C)"  # the constants
+
+
+@pytest.mark.parametrize("d", [1, 2])
+def test_six_periods_apply_the_law_written_out_with_encoder_zero_errors(geometry, d):
+    """Six periods of the law written out here (vectorised, with the batched kinematics) on a
+    calibrated robot whose encoders read each crank plus its zero error (up to 5 mrad), with
+    the disturbance estimate fed back (0.3): from the second period on the integral, the
+    pending commands (one or two) and the estimator's prediction all enter the torque, so each
+    is held to its own term, period by period; the pose error is J^-1 of the corrected reading's
+    error. The robot's readings subtract the zero errors: adding them instead leaves the
+    platform 2 x 5 mrad off at rest."""
+    offsets = np.array([5e-3, -4e-3, 3e-3, -5e-3, 2e-3, -1e-3])
+    robot = dataclasses.replace(geometry, encoder_offsets_rad=tuple(offsets))
+    ctrl = _controller(
+        robot, d=d, torque_limit_Nm=None, friction_adaptation_s=0.0, disturbance_feedback=0.3,
+        friction_direction_share=0.5,
+    )  # fmt: skip
+    context = ctrl.CreateDefaultContext()
+    loop, h, lead, k_c, rate = ctrl.loop, 0.01, 0.014, 2 * math.pi * 3.0, 2e-3
+    J_inv = np.linalg.inv(kinematics.jacobian(geometry, X_HOME))
+    M = J_inv.T @ statics.task_inertia(geometry, X_HOME) @ J_inv
+    x_bar = np.column_stack([kinematics.ik(geometry, X_HOME), np.zeros((6, 2))])
+    z, pending = np.zeros(6), np.zeros((6, d))
+    rng = np.random.default_rng(11)
+    for period in range(6):
+        x_d, theta, T_ff = _inputs(geometry, rng)
+        reading = theta + offsets
+        th_d = kinematics.ik(geometry, x_d[:6])
+        w_d = kinematics.jacobian(geometry, x_d[:6], th_d) @ x_d[6:12]
+        x_l = x_d[:6] + x_d[6:12] * lead + 0.5 * x_d[12:] * lead**2
+        w_l = kinematics.jacobian(geometry, x_l) @ (x_d[6:12] + x_d[12:] * lead)
+        x_hat = x_bar + np.outer(theta - x_bar[:, 0], loop.L)
+        e_th, e_w = x_hat[:, 0] - th_d, x_hat[:, 1] - w_d
+        a = -(loop.K[0] * z + loop.K[1] * e_th + loop.K[2] * e_w + pending @ loop.K[3:])
+        acc = a - 0.3 * x_hat[:, 2]
+        sense = 0.5 * np.tanh(w_l / rate) + 0.5 * np.tanh((w_l - k_c * e_th) / rate)
+        want = T_ff + 0.2 * sense + 0.04 * w_l + M @ acc
+        _update(ctrl, context, x_d, reading, T_ff)
+        np.testing.assert_allclose(
+            ctrl.GetOutputPort("T").Eval(context), want, rtol=1e-9, atol=1e-9
+        )
+        z = z + h * e_th
+        x_bar = x_hat @ loop.Phi.T + np.outer(pending[:, 0], loop.Gamma)
+        pending = np.column_stack([pending[:, 1:], acc])
+        state = context.get_discrete_state(0).get_value()
+        np.testing.assert_allclose(state[:18].reshape(6, 3), x_bar, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(ctrl.GetOutputPort("integral").Eval(context), z, atol=1e-14)
+        np.testing.assert_allclose(
+            ctrl.GetOutputPort("e_bar").Eval(context), J_inv @ (theta - th_d), rtol=1e-9, atol=1e-14
+        )
+        if period >= d:  # the commands now pending were computed here
+            assert np.max(np.abs(pending)) > 1.0
+    assert np.max(np.abs(z)) > 1e-4 and np.max(np.abs(x_bar[:, 2])) > 1.0
+
+
+def test_the_inertia_is_rescheduled_every_schedule_period(geometry):
+    """steps_per_schedule 10 (0.1 s at 10 ms): re-scheduled at the 11th and the 21st update,
+    not before (the status's last figure counts them)."""
+    ctrl = _controller(geometry, torque_limit_Nm=None)
+    assert ctrl.steps_per_schedule == 10
+    context = ctrl.CreateDefaultContext()
+    rng = np.random.default_rng(5)
+    counts = []
+    for _ in range(21):
+        _update(ctrl, context, *_inputs(geometry, rng))
+        counts.append(ctrl.GetOutputPort("status").Eval(context)[3])
+    assert counts == [0.0] * 10 + [1.0] * 10 + [2.0]
