@@ -164,6 +164,7 @@ MODULES = {
     "stewart_drake/station/bus/emulator.py": (
         "tests/test_servo_emulation.py",
         "tests/test_emulator_clock.py",
+        "tests/test_bus_emulator_answers.py",
     ),
     # The error budget: its floor, its table's units, and each share of a closed-loop run.
     "stewart_drake/analysis/error_budget.py": ("tests/test_error_budget.py",),
