@@ -313,3 +313,24 @@ def test_one_platform_played_the_others_trace_at_its_edges(ratios, named):
         f"{1.0 / ratios[1 - k]:.3g} times nearer its own (mean squared distances, each less its "
         f"mean): give the {named} platform its own trace"
     )
+
+
+def test_a_swap_of_references_that_repeat_is_matched_at_the_pairs_clock_not_a_period_away():
+    """References that repeat exactly (4 s and 5.6 s) match a period away as well as at the
+    pair's clock, within the 10 s searched: the tie goes to the shift nearer the pair's clock
+    (around 0 here), so the exchanged latency is the 300 ms apart, not 4.3 s."""
+    internal, surrogate = Breathing(period_s=4.0), Breathing(amplitude=3e-3, period_s=5.6)
+    pair = (
+        _measured(surrogate.at(T) + _noise(6), "a.csv"),
+        _measured(internal.at(T - 0.3) + _noise(7), "b.csv"),
+    )
+    words = swapped_words((internal, surrogate), pair, 0.0, 0.0)
+    found = re.search(r"exchanged, their relative latency is (-?[\d.]+) (ms|s):", words or "")
+    assert found and found.group(2) == "ms", words
+    assert abs(abs(float(found.group(1))) - 300.0) < 5.0
+    # Around -3.5 s the copies nearest it are taken: a's match at -5.6 s (a surrogate period
+    # back), b's at -4.3 s (an internal period back), 1.3 s apart.
+    words = swapped_words((internal, surrogate), pair, -3.5, 0.0)
+    found = re.search(r"exchanged, their relative latency is (-?[\d.]+) (ms|s):", words or "")
+    assert found and found.group(2) == "s", words
+    assert float(found.group(1)) == pytest.approx(-1.3, abs=0.005)

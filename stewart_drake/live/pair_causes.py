@@ -35,6 +35,9 @@ SWAPPED_RATIO = 0.25
 PLAYED_RATIO = 0.8
 #: Shifts searched around the internal's for the swap's test, s either way.
 SWAP_SEARCH_S = 5.0
+#: Two matches whose scores differ by less than this share of the scores' range are a tie (a
+#: reference that repeats, a period apart): the one nearer the pair's clock is taken.
+TIE_SHARE = 0.05
 
 
 def why_not_following(reference, t, x, x_d, measured) -> str | None:
@@ -110,12 +113,17 @@ def _axis_moving_most(measured, reference, t_ref) -> int | None:
     return int(np.argmax(spread)) if np.any(spread > 0) else None
 
 
-def _best_match(t, v, reference, j: int, shifts: tuple, step: float) -> tuple[float, float]:
+def _best_match(
+    t, v, reference, j: int, shifts: tuple, step: float, around_s: float
+) -> tuple[float, float]:
     """(the least mean squared distance, each less its mean, between v (n,) at the times t (n,)
     and the reference's axis j over the ``shifts`` (lo, hi) s, in v's units squared; the shift
-    where it is, s): the one lag search (:func:`~stewart_drake.base.lag.best_shift`, to a
-    microsecond) and its score there (:func:`~stewart_drake.base.lag.shift_score`)."""
-    from ..base.lag import best_shift, shift_score
+    where it is, s). Of the coarse scores' local minima within :data:`TIE_SHARE` of the least
+    (a reference that repeats matches a period away about as well), the one nearest
+    ``around_s`` is taken, then refined to a microsecond
+    (:func:`~stewart_drake.base.lag.shift_scores`, :func:`~stewart_drake.base.lag.refine_shift`)
+    and scored there (:func:`~stewart_drake.base.lag.shift_score`)."""
+    from ..base.lag import refine_shift, shift_score, shift_scores
     from ..organ_motion.alignment import reference_poses
 
     y = np.asarray(v, dtype=float)[:, None]
@@ -124,7 +132,12 @@ def _best_match(t, v, reference, j: int, shifts: tuple, step: float) -> tuple[fl
     def seen(times):
         return reference_poses(reference, times)[:, j : j + 1]
 
-    d = best_shift(t, y, weights, seen, shifts, step, True)
+    d_grid, score = shift_scores(t, y, weights, seen, shifts, step, True)
+    least = float(np.min(score))
+    inner = np.r_[True, score[1:] <= score[:-1]] & np.r_[score[:-1] <= score[1:], True]
+    ties = np.flatnonzero(inner & (score <= least + TIE_SHARE * (float(np.max(score)) - least)))
+    d0 = float(d_grid[ties[np.argmin(np.abs(d_grid[ties] - around_s))]])
+    d = min(max(refine_shift(t, y, weights, seen, d0, step, True), shifts[0]), shifts[1])
     return max(shift_score(t, y, weights, seen, d, True), 0.0), d
 
 
@@ -163,8 +176,8 @@ def swapped_words(
         step = max(COARSE_STEP_S, float(np.median(np.diff(m.t))))
         shifts = (around_s - SWAP_SEARCH_S, around_s + SWAP_SEARCH_S)
         v = np.asarray(m.poses[:, axes[own]], dtype=float)
-        mine, _ = _best_match(m.t, v, pair_refs[own], axes[own], shifts, step)
-        theirs, d = _best_match(m.t, v, pair_refs[1 - own], axes[1 - own], shifts, step)
+        mine, _ = _best_match(m.t, v, pair_refs[own], axes[own], shifts, step, around_s)
+        theirs, d = _best_match(m.t, v, pair_refs[1 - own], axes[1 - own], shifts, step, around_s)
         ratios.append(math.inf if theirs <= 0 else mine / theirs)
         crossed.append(d)
     exchanged = crossed[0] - crossed[1]  # the surrogate's reference's shift less the internal's
@@ -206,6 +219,7 @@ __all__ = [
     "SWAPPED_RATIO",
     "PLAYED_RATIO",
     "SWAP_SEARCH_S",
+    "TIE_SHARE",
     "why_not_following",
     "swapped_words",
 ]
