@@ -1,7 +1,8 @@
 """The lag of a measured signal behind its command by RMSE alignment in continuous shifts: one
 search for every lag the package measures.
 
-Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.alignment`), the pair's relative
+Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.verification`) and its
+reversed-axis test (:mod:`stewart_drake.organ_motion.measured_verdict`), the pair's relative
 latency on measurements (``verify --surrogate``, :mod:`stewart_drake.live.pair_judgement`) and its
 swap test (:mod:`stewart_drake.live.pair_causes`), a reproduced pair's lags and its external's
 lead (:mod:`stewart_drake.station.surrogate.sync_figures`), the robot's lags from its encoders

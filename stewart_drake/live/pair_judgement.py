@@ -455,9 +455,6 @@ def verify_pair(
     )
 
 
-# -- the command -----------------------------------------------------------------------------------
-
-
 __all__ = [
     "MAX_RELATIVE_LATENCY_S",
     "RELATIVE_SEARCH_S",
