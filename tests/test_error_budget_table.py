@@ -160,3 +160,211 @@ def test_a_budget_longer_than_its_bound_is_refused_before_any_simulation(monkeyp
         error_budget(load_scenario("paper_bus", []), hour)
     with pytest.raises(InvalidConfigError, match="--param period="):
         error_budget(load_scenario("paper_bus", []), "breathing", duration_s=eb.MAX_SPAN_S + 1)
+
+
+def _stand_in(monkeypatch, figures):
+    """error_budget with its simulations stood in: each run returns ``figures(k, scenario)``
+    (its k-th call), and the scenarios and lines said are kept."""
+    from stewart_drake.analysis import error_budget as module
+
+    runs = []
+
+    def fake(scenario, reference, skip):
+        runs.append((scenario, reference, skip))
+        return figures(len(runs) - 1, scenario)
+
+    monkeypatch.setattr(module, "_errors", fake)
+    return runs
+
+
+def test_the_budget_holds_each_run_where_its_source_is(monkeypatch):
+    """Every figure of the ErrorBudget from the runs that made it: the total and the encoder pose
+    from the run with every source, each row sqrt(total^2 - without^2) of its own run, a
+    source the scenario lacks (backlash: paper_bus has none) zeros and no run, the floor at the
+    motion's centre, the window, the assumptions, and one line said before each run."""
+    centre = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.01])
+    total = np.array([4e-4, 3e-4, 2e-4, 1.2e-4, 1.0e-4, 3e-5])
+
+    def figures(k, scenario):
+        if k == 0:
+            return total, 2 * total, centre
+        return total * (0.5 + 0.1 * k), np.zeros(6), np.zeros(6)  # run k: its own share
+
+    runs = _stand_in(monkeypatch, figures)
+    lines = []
+    scenario = load_scenario("paper_bus", ["payload_scale=1.2"])
+    budget = error_budget(scenario, "breathing", duration_s=4.0, skip_s=1.0, say=lines.append)
+    ran = ["encoders", "period and delay", "current loop", "friction", "model"]
+    assert len(runs) == 6 and all(skip == 1.0 for _, _, skip in runs)
+    assert lines == [
+        "simulating 4 s of the motion, every source ...",
+        *(f"simulating 4 s of the motion, without its {name} ..." for name in ran),
+    ]
+    np.testing.assert_array_equal(budget.total, total)
+    np.testing.assert_array_equal(budget.encoder_pose, 2 * total)
+    assert list(budget.rows) == list(SOURCES) and sorted(budget.without) == sorted(ran)
+    for k, name in enumerate(ran, start=1):
+        without = total * (0.5 + 0.1 * k)
+        np.testing.assert_array_equal(budget.without[name], without)
+        np.testing.assert_allclose(budget.rows[name], total * np.sqrt(1 - (0.5 + 0.1 * k) ** 2))
+    np.testing.assert_array_equal(budget.rows["backlash"], np.zeros(6))
+    np.testing.assert_allclose(budget.floor, quantization_floor(scenario, centre), rtol=1e-12)
+    assert not np.allclose(budget.floor, quantization_floor(scenario))  # not at home
+    assert budget.window_s == (1.0, 4.0)
+    assert budget.assumptions == {
+        "centre": centre.tolist(),
+        "control_period_s": 0.01,
+        "delay_periods": 1,
+        "counts_per_rev": 4096,
+        "controller": "CrankServoDriver",
+    }
+    full = runs[0][0]
+    assert full.bus is None and full.duration_s == 4.0 and full.learning is None
+    assert runs[0][1] is runs[1][1]  # one reference for every run
+
+
+@pytest.mark.parametrize(
+    "reference, span, skip",
+    [(Breathing(period_s=2.0), 10.0, 2.0), ("a still pose", 20.0, 4.0)],
+)
+def test_without_a_span_the_budget_takes_five_periods_and_skips_the_first(
+    monkeypatch, reference, span, skip
+):
+    """Five of the motion's periods, the first not measured; a reference with no period: 20 s,
+    the first 4 not measured."""
+    from types import SimpleNamespace
+
+    if isinstance(reference, str):
+        reference = SimpleNamespace(evaluate=None)  # an object with evaluate(t), no period
+    runs = _stand_in(monkeypatch, lambda k, s: (np.full(6, 1e-4), np.full(6, 1e-4), X_HOME))
+    budget = error_budget(load_scenario("paper_bus", []), reference)
+    assert budget.window_s == (skip, span)
+    assert runs[0][0].duration_s == span and runs[0][2] == skip
+
+
+def test_the_budgets_json_holds_every_figure_in_si_units():
+    from stewart_drake.analysis.error_budget import ErrorBudget
+
+    rows = {"encoders": np.array([1e-4, 0, 0, 2e-5, 0, 0]), "friction": np.full(6, np.nan)}
+    budget = ErrorBudget(
+        floor=np.full(6, 1.3e-4),
+        total=np.arange(6) * 1e-5,
+        encoder_pose=np.arange(6) * 2e-5,
+        rows=rows,
+        without={"encoders": np.ones(6) * 3e-5},
+        window_s=(2.0, 10.0),
+        assumptions={"control_period_s": 0.01},
+        measured="emulated",
+    )
+    record = budget.record()
+    assert record["floor"] == [1.3e-4] * 6
+    assert record["total"] == [0.0, 1e-5, 2e-5, 3.0000000000000004e-05, 4e-5, 5e-5]
+    assert record["encoder_pose"] == [k * 2e-5 for k in range(6)]
+    assert record["rows"]["encoders"] == [1e-4, 0.0, 0.0, 2e-5, 0.0, 0.0]
+    assert np.isnan(record["rows"]["friction"]).all()
+    assert record["without"] == {"encoders": [3e-5] * 6}
+    assert record["window_s"] == [2.0, 10.0]
+    assert record["assumptions"] == {"control_period_s": 0.01} and record["measured"] == "emulated"
+    assert list(record) == [
+        "floor", "total", "encoder_pose", "rows", "without", "window_s", "assumptions", "measured"
+    ]  # fmt: skip
+
+
+def test_what_dominates_is_the_largest_share_by_its_norm_and_a_row_not_measured_never():
+    """Translations (X, Y, Z) and rotations judged apart, each by its norm: a row with one large
+    axis against one with two middling; a NaN row (its run did not end) is said not measured
+    and dominates nothing, even where every other row is zero."""
+    from stewart_drake.analysis.error_budget import ErrorBudget
+
+    rows = {
+        "encoders": np.array([0.0, 0.0, 5e-4, 0.0, 0.0, 0.0]),
+        "friction": np.array([3e-4, 3e-4, 3e-4, 3e-5, 3e-5, 0.0]),  # rotation norm 5.2e-4
+        "current loop": np.array([0.0, 0.0, 0.0, 0.0, 0.0, 5e-5]),  # translation norm 5e-5
+        "backlash": np.full(6, np.nan),
+    }
+    budget = ErrorBudget(
+        floor=np.zeros(6), total=np.ones(6), encoder_pose=np.ones(6), rows=rows, without={},
+        window_s=(0.0, 1.0), assumptions={"backlash": "its run stalled"},
+    )  # fmt: skip
+    assert budget.dominant() == ("current loop", "friction")
+    lines = budget.lines()
+    assert "Not measured, backlash: its run stalled." in lines
+    assert "| share of backlash | - | - | - | - | - | - | a gear without play |" in lines
+    assert lines[-1] == "Dominant: current loop in translation, friction in rotation."
+    only_nan = ErrorBudget(
+        floor=np.zeros(6), total=np.ones(6), encoder_pose=np.ones(6),
+        rows={"encoders": np.zeros(6), "backlash": np.full(6, np.nan)}, without={},
+        window_s=(0.0, 1.0),
+    )  # fmt: skip
+    assert only_nan.dominant() == ("encoders", "encoders")
+    assert "Not measured, backlash: its run did not end." in only_nan.lines()
+
+
+def test_without_friction_each_controller_believes_none_and_another_is_kept():
+    from dataclasses import dataclass
+
+    from stewart_drake.analysis.error_budget import _believing_no_friction
+
+    @dataclass(frozen=True)
+    class Lqi:
+        friction_compensation_Nm: float = 0.3
+
+    @dataclass(frozen=True)
+    class Servo:
+        friction_scale: float = 1.0
+
+    @dataclass(frozen=True)
+    class Other:
+        gain: float = 2.0
+
+    assert _believing_no_friction(Lqi()) == Lqi(0.0)
+    assert _believing_no_friction(Servo()) == Servo(0.0)
+    other = Other()
+    assert _believing_no_friction(other) is other
+
+
+def test_the_floor_defaults_to_home():
+    scenario = load_scenario("paper_bus", [])
+    np.testing.assert_array_equal(
+        quantization_floor(scenario), quantization_floor(scenario, X_HOME)
+    )
+
+
+def test_one_runs_errors_are_the_true_and_the_encoder_poses_over_the_window(monkeypatch):
+    """``_errors`` on a run stood in: the poses after ``skip`` only (the rows before are far
+    off); the true pose's RMS error; the encoder pose of cranks on whole counts is the true
+    pose, and of cranks 0.4 count past them the pose of the whole counts (rounded back); the
+    motion's centre is the reference's mean over the window."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    from stewart_drake.analysis import error_budget as module
+    from stewart_drake.run import simulate
+
+    plan = make_plan(load_scenario("paper_bus", []), with_reference=False)
+    scenario = dataclasses.replace(plan.scenario, bus=None)  # as error_budget passes it
+    geometry = plan.geometry
+    q = 2 * np.pi / 4096
+    t = np.arange(8) * 0.01
+    x_d = np.tile(X_HOME, (8, 1))
+    x_d[:, 5] += np.linspace(0.0, 0.01, 8)
+    counts = np.round(kinematics.ik(geometry, x_d) / q)  # whole counts near the reference
+    on_counts = np.array([fk(geometry, c * q, x0=x)[0] for c, x in zip(counts, x_d)])
+    late = np.array([fk(geometry, (c + 0.4) * q, x0=x)[0] for c, x in zip(counts, x_d)])
+    x_true = np.where((np.arange(8) % 2 == 0)[:, None], on_counts, late)
+    x_true[:3] += 0.05  # before the window: never counted
+    result = SimpleNamespace(
+        t=t, x=np.hstack([x_true, np.zeros((8, 6))]), x_d=np.hstack([x_d, np.zeros((8, 12))])
+    )
+    monkeypatch.setattr(simulate, "run_experiment", lambda scenario, reference: result)
+    total, encoders, centre = module._errors(scenario, None, 0.03)
+    kept = slice(3, None)
+    np.testing.assert_allclose(
+        total, np.sqrt(np.mean((x_true[kept] - x_d[kept]) ** 2, axis=0)), rtol=1e-12
+    )
+    np.testing.assert_allclose(
+        encoders, np.sqrt(np.mean((on_counts[kept] - x_d[kept]) ** 2, axis=0)), rtol=1e-6,
+        atol=1e-12,
+    )  # fmt: skip
+    assert not np.allclose(total, encoders)  # the late cranks' 0.4 count is what they hide
+    np.testing.assert_allclose(centre, x_d[kept].mean(axis=0), rtol=1e-15)
