@@ -220,12 +220,20 @@ def test_the_budget_holds_each_run_where_its_source_is(monkeypatch):
     }
     full = runs[0][0]
     assert full.bus is None and full.duration_s == 4.0 and full.learning is None
-    assert runs[0][1] is runs[1][1]  # one reference for every run
+    reference = runs[0][1]  # the library's breathing, made on the robot: one for every run
+    assert all(r is reference for _, r, _ in runs) and hasattr(reference, "evaluate")
+    assert all(run.learning is None and run.bus is None for run, _, _ in runs)
+    period = runs[2][0]  # without the period and delay: its logs at the 1 ms period too
+    assert (period.log_period_s, period.state_log_period_s) == (1e-3, 1e-2)
 
 
 @pytest.mark.parametrize(
     "reference, span, skip",
-    [(Breathing(period_s=2.0), 10.0, 2.0), ("a still pose", 20.0, 4.0)],
+    [
+        (Breathing(period_s=2.0), 10.0, 2.0),
+        (Breathing(period_s=0.8), 4.0, 0.8),
+        ("a still pose", 20.0, 4.0),
+    ],
 )
 def test_without_a_span_the_budget_takes_five_periods_and_skips_the_first(
     monkeypatch, reference, span, skip
@@ -277,23 +285,24 @@ def test_what_dominates_is_the_largest_share_by_its_norm_and_a_row_not_measured_
     from stewart_drake.analysis.error_budget import ErrorBudget
 
     rows = {
-        "encoders": np.array([0.0, 0.0, 5e-4, 0.0, 0.0, 0.0]),
-        "friction": np.array([3e-4, 3e-4, 3e-4, 3e-5, 3e-5, 0.0]),  # rotation norm 5.2e-4
-        "current loop": np.array([0.0, 0.0, 0.0, 0.0, 0.0, 5e-5]),  # translation norm 5e-5
         "backlash": np.full(6, np.nan),
+        "encoders": np.array([0.0, 0.0, 5.15e-4, 1.5e-4, 0.0, 0.0]),  # X alone: 1.5e-4
+        "friction": np.array([3e-4, 3e-4, 3e-4, 3e-5, 3e-5, 0.0]),  # rotation norm 5.2e-4
+        "current loop": np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1e-4]),  # Z alone: 1e-4
     }
     budget = ErrorBudget(
         floor=np.zeros(6), total=np.ones(6), encoder_pose=np.ones(6), rows=rows, without={},
         window_s=(0.0, 1.0), assumptions={"backlash": "its run stalled"},
     )  # fmt: skip
-    assert budget.dominant() == ("current loop", "friction")
+    assert budget.dominant() == ("encoders", "friction")
     lines = budget.lines()
     assert "Not measured, backlash: its run stalled." in lines
     assert "| share of backlash | - | - | - | - | - | - | a gear without play |" in lines
-    assert lines[-1] == "Dominant: current loop in translation, friction in rotation."
+    assert lines[-1] == "Dominant: encoders in translation, friction in rotation."
+    assert lines[-3] == ""  # the table, a blank line, then the words
     only_nan = ErrorBudget(
         floor=np.zeros(6), total=np.ones(6), encoder_pose=np.ones(6),
-        rows={"encoders": np.zeros(6), "backlash": np.full(6, np.nan)}, without={},
+        rows={"backlash": np.full(6, np.nan), "encoders": np.zeros(6)}, without={},
         window_s=(0.0, 1.0),
     )  # fmt: skip
     assert only_nan.dominant() == ("encoders", "encoders")
@@ -368,3 +377,23 @@ def test_one_runs_errors_are_the_true_and_the_encoder_poses_over_the_window(monk
     )  # fmt: skip
     assert not np.allclose(total, encoders)  # the late cranks' 0.4 count is what they hide
     np.testing.assert_allclose(centre, x_d[kept].mean(axis=0), rtol=1e-15)
+
+
+def test_the_window_and_the_span_are_taken_at_their_edges(monkeypatch):
+    """A window from 0 and a span of exactly MAX_SPAN_S are taken; a window that starts at the
+    span's end is refused; a span past the bound names the seven runs it would take, and the
+    five periods only when the span was the default."""
+    from stewart_drake.analysis import error_budget as eb
+
+    _stand_in(monkeypatch, lambda k, s: (np.full(6, 1e-4), np.full(6, 1e-4), X_HOME))
+    scenario = load_scenario("paper_bus", [])
+    assert error_budget(scenario, "breathing", duration_s=4.0, skip_s=0.0).window_s == (0.0, 4.0)
+    long = error_budget(scenario, "breathing", duration_s=eb.MAX_SPAN_S, skip_s=1.0)
+    assert long.window_s == (1.0, eb.MAX_SPAN_S)
+    with pytest.raises(InvalidConfigError, match="skip_s"):
+        error_budget(scenario, "breathing", duration_s=4.0, skip_s=4.0)
+    with pytest.raises(InvalidConfigError) as refused:
+        error_budget(scenario, "breathing", duration_s=eb.MAX_SPAN_S + 1)
+    words = str(refused.value)
+    assert f"would simulate {eb.MAX_SPAN_S + 1:g} s of the motion up to 7 times" in words
+    assert "five of its periods" not in words
