@@ -97,13 +97,21 @@ def test_a_write_is_acknowledged_and_kept_a_short_one_refused_a_broadcast_one_si
     assert _answer(emu, 1, p.WRITE, _le(102, 2)) == [(1, p.ERR_DATA_LENGTH, b"")]
     assert _answer(emu, p.BROADCAST_ID, p.WRITE, _le(102, 2) + _le(77, 2)) == []
     assert [emu.read_item(i, p.GOAL_CURRENT) for i in (1, 2, 3)] == [77, 77, 77]
+    assert _answer(emu, p.BROADCAST_ID, p.WRITE, _le(9, 2) + bytes([40])) == []  # one byte
+    assert [emu.read_item(i, p.RETURN_DELAY_TIME) for i in (1, 2, 3)] == [40, 40, 40]
+    # A broadcast READ writes nothing, whatever its parameters.
+    assert _answer(emu, p.BROADCAST_ID, p.READ, _le(102, 2) + _le(9, 2)) == []
+    assert [emu.read_item(i, p.GOAL_CURRENT) for i in (1, 2, 3)] == [77, 77, 77]
 
 
 def test_a_sync_write_writes_each_row_to_its_servo_only_and_is_not_answered(emu):
-    rows = bytes([1]) + _le(10, 2) + bytes([3]) + _le(-30, 2)
+    """Each row is an id and ``size`` bytes: servo 1's goal of 2 (a byte that is also an id)
+    is not read as a row of servo 2, and no row writes past its item."""
+    rows = bytes([1]) + _le(2, 2) + bytes([3]) + _le(-30, 2)
     assert _answer(emu, p.BROADCAST_ID, p.SYNC_WRITE, _le(102, 2) + _le(2, 2) + rows) == []
     goals = [p.to_signed(emu.read_item(i, p.GOAL_CURRENT), 2) for i in (1, 2, 3)]
-    assert goals == [10, 0, -30]
+    assert goals == [2, 0, -30]
+    assert [emu.read_item(i, (104, 1)) for i in (1, 2, 3)] == [0, 0, 0]  # the byte after
 
 
 def test_a_sync_read_answers_each_servo_asked_in_its_order(emu):
@@ -114,6 +122,24 @@ def test_a_sync_read_answers_each_servo_asked_in_its_order(emu):
     size = emu.servos[1].items.size
     beyond = _answer(emu, p.BROADCAST_ID, p.SYNC_READ, _le(size - 1, 2) + _le(4, 2) + bytes([2]))
     assert beyond == [(2, p.ERR_DATA_RANGE, b"")]
+    last = _answer(emu, p.BROADCAST_ID, p.SYNC_READ, _le(size - 1, 2) + _le(1, 2) + bytes([2]))
+    assert last[0][:2] == (2, 0)  # the table's last byte is in range
+
+
+def test_a_sync_read_across_two_models_answers_each_by_its_own_table():
+    """A P-series servo beside X-series ones: an address past the X table but inside the P
+    table gives the P servo its bytes and the X servo its range error, in the order asked."""
+    with BusEmulator([1, 3], models={3: "PM42-010-S260-R"}) as mixed:
+        assert (
+            mixed.read_item(3, p.MODEL_NUMBER) == 2100
+            and mixed.read_item(1, p.MODEL_NUMBER) == 1020
+        )
+        address = mixed.servos[1].items.size + 10
+        assert mixed.servos[3].items.size > address + 4
+        statuses = _answer(
+            mixed, p.BROADCAST_ID, p.SYNC_READ, _le(address, 2) + _le(4, 2) + bytes([3, 1])
+        )
+        assert [s[:2] for s in statuses] == [(3, 0), (1, p.ERR_DATA_RANGE)]
 
 
 def test_an_instruction_the_servo_does_not_know_is_refused_unless_broadcast(emu):
@@ -147,6 +173,52 @@ def test_a_hardware_error_removes_the_torque_and_sets_the_alert_bit_in_every_sta
     np.testing.assert_allclose(emu.applied_current_A(), [0.0, 100 * CURRENT_UNIT_A, 0.0])
 
 
+def test_a_fresh_emulator_holds_the_documented_defaults():
+    """Stepped every 2 ms, at most 20 ms a step, 30 deg C, a Return Delay Time of 0, on the wall
+    clock with no catch-up; nothing slipped, dropped, muted or failed yet; a servo without a
+    current mode (the XL430-W250) is emulated (the driver, not the bus, refuses it)."""
+    fresh = BusEmulator([1, 2], backend=Held(np.zeros(2), np.zeros(2)))  # not started
+    try:
+        assert (fresh.tick_s, fresh.max_step_s) == (0.002, 0.02)
+        assert fresh.command_step_s is None and fresh.catch_up is False
+        assert fresh.read_item(1, p.PRESENT_TEMPERATURE) == 30
+        assert fresh.read_item(2, p.RETURN_DELAY_TIME) == 0
+        assert (fresh.slipped_s, fresh.dropped_bytes, fresh.muted) == (0.0, 0, False)
+        assert fresh.model_error is None and fresh.timing is None
+    finally:
+        fresh.close()
+    with BusEmulator([4], model="XL430-W250-T", models={4: "XL430-W250-T"}) as xl:
+        assert xl.read_item(4, p.MODEL_NUMBER) == 1060
+
+
+@pytest.mark.parametrize(
+    "ids, kw",
+    [([], {}), ([1, 1], {}), ([-1], {}), ([253], {}), ([1], {"command_step_s": 0.0}),
+     ([1], {"command_step_s": math.inf})],
+)  # fmt: skip
+def test_bad_ids_or_a_bad_command_step_are_refused(ids, kw):
+    from stewart_drake.base.errors import InvalidConfigError
+
+    with pytest.raises(InvalidConfigError, match="ids|command_step_s"):
+        BusEmulator(ids, **kw)
+
+
+def test_the_ids_at_the_ends_of_the_range_are_taken():
+    with BusEmulator([0, 252], backend=Held(np.zeros(2), np.zeros(2))) as ends:
+        assert [s[0] for s in _answer(ends, p.BROADCAST_ID, p.PING)] == [0, 252]
+
+
+def test_its_threads_are_named_and_never_hold_the_interpreter_at_exit():
+    """A stack dump names them (``dynamixel-bus-emulator``, ``dynamixel-bus-model``), and they
+    are daemons: an emulator left open never keeps a process from ending."""
+    import threading
+
+    with BusEmulator([1], backend=Held(np.zeros(1), np.zeros(1))):
+        threads = {t.name: t for t in threading.enumerate()}
+        for name in ("dynamixel-bus-emulator", "dynamixel-bus-model"):
+            assert name in threads and threads[name].daemon, name
+
+
 def test_the_present_values_are_the_motion_in_the_e_manuals_units():
     q, v = np.array([0.1, -0.2, 0.0]), np.array([1.0, -0.5, 0.03])
     zeros = [2048, 1000, 0]
@@ -175,10 +247,21 @@ def _status_within(fd, wait_s):
     return None
 
 
-def test_the_emulators_own_process_entry_serves_the_ids_it_is_given(capsys, monkeypatch):
+@pytest.mark.parametrize(
+    "argv, there, absent, model",
+    [
+        (["--ids", "3", "7"], 7, 1, 1020),
+        ([], 6, 7, 1020),  # the default ids, 1 to 6
+        ([], 1, 0, 1020),
+        (["--ids", "2", "--model", "XM540-W270-T"], 2, 1, 1120),
+    ],
+)
+def test_the_emulators_own_process_entry_serves_the_ids_it_is_given(
+    capsys, monkeypatch, argv, there, absent, model
+):
     """``python -m stewart_drake.station.bus.emulator --ids 3 7`` (docs/hardware_bus.md) run in
-    this process: it prints its port first, answers a ping of servo 7 there and not of servo 1,
-    and ends when its stdin closes."""
+    this process: it prints its port first, answers a ping of a servo it serves with its model
+    and not of another, and ends when its stdin closes."""
     pings = {}
 
     class Stdin:
@@ -188,7 +271,7 @@ def test_the_emulators_own_process_entry_serves_the_ids_it_is_given(capsys, monk
             try:
                 # Servo 7 answers within the hang guard; servo 1 is not there: a second of
                 # silence is its answer.
-                for servo, wait_s in ((7, HANG_S), (1, 1.0)):
+                for servo, wait_s in ((there, HANG_S), (absent, 1.0)):
                     os.write(fd, p.build_packet(servo, p.PING))
                     pings[servo] = _status_within(fd, wait_s)
             finally:
@@ -196,7 +279,8 @@ def test_the_emulators_own_process_entry_serves_the_ids_it_is_given(capsys, monk
             return ""  # stdin closed: the entry stops serving
 
     monkeypatch.setattr(sys, "stdin", Stdin())
-    main(["--ids", "3", "7"])
-    assert pings[7] is not None and pings[7].servo_id == 7 and pings[7].params[0] == 0
-    assert int.from_bytes(pings[7].params[1:3], "little") == 1020  # XM430-W350, the default
-    assert pings[1] is None
+    main(argv)
+    assert pings[there] is not None and pings[there].servo_id == there
+    assert pings[there].params[0] == 0
+    assert int.from_bytes(pings[there].params[1:3], "little") == model
+    assert pings[absent] is None
