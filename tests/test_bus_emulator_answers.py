@@ -189,6 +189,21 @@ def test_a_fresh_emulator_holds_the_documented_defaults():
         fresh.close()
     with BusEmulator([4], model="XL430-W250-T", models={4: "XL430-W250-T"}) as xl:
         assert xl.read_item(4, p.MODEL_NUMBER) == 1060
+        assert xl.read_item(4, p.PRESENT_CURRENT) == 0  # no current unit: nothing reported
+
+
+def test_the_packets_received_are_kept_with_their_time_and_bounded(emu):
+    """Every instruction packet is logged with its arrival time, newest last; past 10,000 the
+    oldest 5,000 go, so a long session's log stays bounded."""
+    packet = p.parse_packet(p.build_packet(1, p.PING))[0]
+    before = time.perf_counter()
+    for _ in range(10_000):
+        emu._log(packet)
+    assert len(emu.received) == 10_000
+    t0, first = emu.received[0]
+    assert first is packet and before <= t0 <= time.perf_counter()
+    emu._log(packet)
+    assert len(emu.received) == 5_001
 
 
 @pytest.mark.parametrize(
@@ -233,6 +248,11 @@ def test_the_present_values_are_the_motion_in_the_e_manuals_units():
     with BusEmulator([1, 2, 3], backend=Held(np.zeros(3), np.zeros(3), currents)) as emulator:
         present = [p.to_signed(emulator.read_item(i, p.PRESENT_CURRENT), 2) for i in (1, 2, 3)]
         assert present == [round(a / CURRENT_UNIT_A) for a in currents] == [186, -93, 0]
+    # A backend that drives fewer windings than it has servos (a surrogate's stage last): the
+    # last reports what its own table drives (its torque off: 0).
+    with BusEmulator([1, 2, 3], backend=Held(np.zeros(3), np.zeros(3), currents[:2])) as short:
+        present = [p.to_signed(short.read_item(i, p.PRESENT_CURRENT), 2) for i in (1, 2, 3)]
+        assert present == [186, -93, 0]
 
 
 def _status_within(fd, wait_s):
