@@ -27,7 +27,7 @@ Printed per run, one line per figure:
   a call.
 
 Usage: python benchmarks/robot_loop.py [--duration 20] [--period 0.01 0.005] [--load 0 2]
-    [--no-realtime] [--breakdown]
+    [--no-realtime] [--breakdown] [--servos realistic|ideal]
 """
 
 import argparse
@@ -164,9 +164,15 @@ def rms(e) -> str:
 
 
 def one_run(
-    period: float, duration: float, load: int, realtime: bool, out: str, breakdown: bool
+    period: float,
+    duration: float,
+    load: int,
+    realtime: bool,
+    out: str,
+    breakdown: bool,
+    servos: str = "realistic",
 ) -> None:
-    scenario = load_scenario(ROBOT_SCENARIO, ())
+    scenario = load_scenario(ROBOT_SCENARIO, (f"emulator.servos={servos}",))
     scenario.reference = NamedReference("paper")
     scenario.duration_s = duration
     scenario.control_period_s = scenario.log_period_s = period
@@ -228,11 +234,22 @@ def main() -> None:
     parser.add_argument("--load", type=int, nargs="+", default=[0, 2], help="busy processes")
     parser.add_argument("--no-realtime", action="store_true", help="the loop as before")
     parser.add_argument("--breakdown", action="store_true", help="CPU time a callback")
+    parser.add_argument(
+        "--servos", choices=("realistic", "ideal"), default="realistic", help="the emulator's"
+    )
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as out:
         for period in args.period:
             for load in args.load:
-                one_run(period, args.duration, load, not args.no_realtime, out, args.breakdown)
+                one_run(
+                    period,
+                    args.duration,
+                    load,
+                    not args.no_realtime,
+                    out,
+                    args.breakdown,
+                    args.servos,
+                )
 
 
 if __name__ == "__main__":
