@@ -455,19 +455,13 @@ def test_a_documented_block_runs_as_written(block, tmp_path, monkeypatch, capsys
         if command.not_run:
             results.append(f"{command.where}: parsed only ({command.not_run}): {command.text}")
             continue
-        if command.shell:  # cp, from the repository's root
-            source, target = command.prefix[-2:]
-            shutil.copy(REPO / source if is_repository_file(source) else source, target)
+        if stage(command, tmp_path):
             results.append(f"{command.where}: {shlex.join(command.prefix)}")
             continue
-        for name in named_files(parse(command.argv))[0]:
-            if is_repository_file(name) and not (tmp_path / name).exists():
-                (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy(REPO / name, tmp_path / name)
         argv = with_short(command)
         capsys.readouterr()
         start = time.monotonic()
-        code = _exit_status(argv)
+        code = exit_status(argv)
         seconds = time.monotonic() - start
         out, err = capsys.readouterr()
         line = f"{command.where}: exit {code} in {seconds:.0f} s: stewart-drake {shlex.join(argv)}"
@@ -480,7 +474,22 @@ def test_a_documented_block_runs_as_written(block, tmp_path, monkeypatch, capsys
     assert not wrong, "\n".join(wrong)
 
 
-def _exit_status(argv) -> int:
+def stage(command: DocCommand, folder: Path) -> bool:
+    """Before a runnable command of a block runs in ``folder`` (the current one): a ``cp`` is
+    carried out (True: nothing more to run), else the repository's files the command names are
+    copied in (False)."""
+    if command.shell:  # cp, from the repository's root
+        source, target = command.prefix[-2:]
+        shutil.copy(REPO / source if is_repository_file(source) else source, target)
+        return True
+    for name in named_files(parse(command.argv))[0]:
+        if is_repository_file(name) and not (folder / name).exists():
+            (folder / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy(REPO / name, folder / name)
+    return False
+
+
+def exit_status(argv) -> int:
     try:
         return main(list(argv))
     except SystemExit as exit_:  # --version, --help

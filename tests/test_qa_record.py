@@ -58,12 +58,15 @@ def record(tmp_path, export, *options):
     return code, pdfs, jsons
 
 
-def page_texts(pdf: Path) -> list[str]:
+def page_texts(pdf: Path, raw: bool = False) -> list[str]:
     """Each page's text, read back from the PDF by a reader of its own (pypdfium2 when
-    installed, else the raw content streams' text operators)."""
+    installed and not ``raw``, else the raw content streams' text operators, which read the
+    same on every machine)."""
     try:
         import pypdfium2 as pdfium
     except ImportError:
+        pdfium = None
+    if raw:
         pdfium = None
     if pdfium is not None:
         doc = pdfium.PdfDocument(str(pdf))
