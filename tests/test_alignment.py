@@ -1,5 +1,5 @@
 """The clock and the frames of ``stewart-drake verify``
-(:mod:`~stewart_drake.organ_motion.alignment`) against numbers found here another way: the
+(:mod:`~stewart_drake.verification.alignment`) against numbers found here another way: the
 clock's score recomputed shift by shift in a few lines of numpy, the shift found against the
 known delay of a synthetic motion, the frames against the emulated tracker's truth and a
 rotation matrix written out by hand. Unit tests of a fraction of a second each:
@@ -14,9 +14,9 @@ from harmonic_motion import Harmonics, rpy_matrix
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.base.lag import coarse_shift, refine_shift, shift_score, shift_scores
 from stewart_drake.calibration.tracker import emulated_setup
-from stewart_drake.organ_motion import alignment
-from stewart_drake.organ_motion.alignment import Frames, axis_weights, reference_poses
 from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.verification import alignment
+from stewart_drake.verification.alignment import Frames, axis_weights, reference_poses
 
 #: A motion on every axis, two harmonics each so that it repeats every 4 s only, about a pose
 #: 0.3 m up (a score's constant parts are large against its differences).

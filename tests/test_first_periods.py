@@ -12,7 +12,7 @@ from conftest import HANG_S, needs_extra, robot_bus_yaml, start_as_a_user
 
 from stewart_drake.base.compiled import kernel_versions, versions_added
 from stewart_drake.calibration.join import read_encoder_log
-from stewart_drake.organ_motion.measured_motion import EMULATED_BUS
+from stewart_drake.verification.measured_motion import EMULATED_BUS
 
 LATE = "compiled or loaded with the torque on"
 

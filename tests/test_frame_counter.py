@@ -9,9 +9,9 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.measured_motion import read_measured
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.references.traces import load_trace
+from stewart_drake.verification.measured_motion import read_measured
 
 RATE_HZ = 30.0
 #: The lines (0-based data rows) whose time the export wrote as frame / 30 s instead of ms.

@@ -2,8 +2,9 @@
 command. Core: base (errors, checks, the checked reader; the generated LCM types) -> robot
 (geometry, kinematics, statics, limits) -> plant (the MultibodyPlant, clearance, MuJoCo) ->
 control -> references -> station -> run -> execution. Features above it: viz (replays and
-pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design and
-live (the robot live, and verify with its surrogate's pair); cli on top. The command's
+pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design,
+live (the robot live) and verification (verify, alone or with its surrogate's pair, and its
+record); cli on top. The command's
 shared options (execution.options: argument types, output checks, the scenario, trace and
 runner options), which every feature's command module imports, sit in execution, below the
 features. A package imports its own package or a lower rank, never
@@ -37,6 +38,7 @@ LAYERS = {
     "evaluation": 10,
     "design": 10,
     "live": 10,
+    "verification": 10,
     "cli": 11,
 }
 #: Modules ranked apart from their package (a key of LAYERS): ``python -m stewart_drake`` is the
@@ -214,7 +216,7 @@ def test_no_argparse_namespace_below_the_command_line():
 def test_the_namespace_check_sees_a_reader():
     """The check would pass vacuously if it missed readers: known ones, each kind."""
     found = namespace_readers()
-    assert "cmd_verify(args)" in found["stewart_drake.live.verify_command"]
+    assert "cmd_verify(args)" in found["stewart_drake.verification.command"]
     assert "import argparse" in found["stewart_drake.calibration.calibrate_options"]
     assert "parse_args" in found["stewart_drake.station.bus.emulator"]
     assert _is_command_line("stewart_drake.live.follow_command")

@@ -1,4 +1,4 @@
-"""The verdict of ``stewart-drake verify`` (:mod:`~stewart_drake.organ_motion.measured_verdict`)
+"""The verdict of ``stewart-drake verify`` (:mod:`~stewart_drake.verification.measured_verdict`)
 held to numbers found here another way: each axis's figures against numpy's own (standard
 deviation, least-squares slope, correlation), a dominant period against the known one, each
 cause's numbers read back from its words against the same, the sensitivity against its closed
@@ -16,10 +16,10 @@ from harmonic_motion import Harmonics, along
 from scipy.spatial.transform import Rotation
 
 from stewart_drake.base.signals import dominant_period
-from stewart_drake.organ_motion import measured_verdict as mv
-from stewart_drake.organ_motion.alignment import Frames
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.measured_verdict import (
+from stewart_drake.verification import measured_verdict as mv
+from stewart_drake.verification.alignment import Frames
+from stewart_drake.verification.measured_motion import MeasuredMotion
+from stewart_drake.verification.measured_verdict import (
     Judgement,
     axis_figures,
     causes_of,
@@ -28,13 +28,13 @@ from stewart_drake.organ_motion.measured_verdict import (
     reversed_match,
     seconds,
 )
-from stewart_drake.organ_motion.verdict_sensitivity import (
+from stewart_drake.verification.verdict_sensitivity import (
     axis_amount,
     axis_tolerances,
     sensitivity,
     sensitivity_words,
 )
-from stewart_drake.organ_motion.verification import MeasuredRun
+from stewart_drake.verification.verify import MeasuredRun
 
 TOLERANCE = (1e-4, math.radians(0.1))
 #: A breath along X, 5 mm and a second harmonic (so that it is not its own reversal shifted),
@@ -976,7 +976,7 @@ def test_a_motion_within_the_tolerance_on_every_axis_measured_cannot_be_judged()
     on every measured axis (phi 0.5 mrad of 1, X 50 um and Y 80 um of 0.1 mm; Z's 5 mm not
     measured), the line says so, naming each axis's RMS and the axis nearest its tolerance (Y,
     0.8 of it; phi when it is 0.95 of its own)."""
-    from stewart_drake.organ_motion.verdict_sensitivity import motion_unseen
+    from stewart_drake.verification.verdict_sensitivity import motion_unseen
 
     measured = [True, False, False, True, True, False]
     words = motion_unseen(_unseen_motion(5e-4, 5e-5, 8e-5), measured, (1e-4, 1e-3))
@@ -998,7 +998,7 @@ def test_a_motion_within_the_tolerance_on_every_axis_measured_cannot_be_judged()
 def test_a_motion_exactly_at_the_tolerance_cannot_be_judged():
     """At rest the phantom errs by exactly the tolerance (X alternating +-2^-13 m about 0, its
     RMS 2^-13 m to the bit, the tolerance the same): within it, so it would pass."""
-    from stewart_drake.organ_motion.verdict_sensitivity import motion_unseen
+    from stewart_drake.verification.verdict_sensitivity import motion_unseen
 
     x = np.zeros((400, 6))
     x[:, 3] = 2.0**-13 * np.tile([1.0, -1.0], 200)
@@ -1015,7 +1015,7 @@ def test_the_sensitivity_counts_an_axis_by_its_own_thresholds():
     either side of it (0.9 and 1.1 um), and with a tolerance of 0.1 um the tilt is then seen
     from 0.1 / 1.1 rad."""
     from stewart_drake.organ_motion.fidelity import MOVING_P2P
-    from stewart_drake.organ_motion.verdict_sensitivity import sensitivity
+    from stewart_drake.verification.verdict_sensitivity import sensitivity
 
     t = np.linspace(0.0, 1.0, 400, endpoint=False)
     x = np.zeros((400, 6))
@@ -1045,7 +1045,7 @@ def test_each_axis_is_graded_at_the_edges_of_its_tolerance_and_action_level():
     """An axis's RMS error at the tolerance exactly PASSes, a hair beyond FAILs; at the action
     level exactly it PASSes, a hair beyond is ACTION; rotations against the angle, translations
     against the length; an axis not measured is not graded."""
-    from stewart_drake.organ_motion.verdict_levels import axis_levels
+    from stewart_drake.verification.verdict_levels import axis_levels
 
     tol, act = (1e-4, 2e-3), (7e-5, 1e-3)
     measured = np.array([False, True, True, True, True, False])
@@ -1072,7 +1072,7 @@ def test_each_axis_is_graded_at_the_edges_of_its_tolerance_and_action_level():
 
 def test_the_exit_status_is_the_worst_verdicts():
     """0 for PASS alone; ACTION 4; CANNOT JUDGE 3 over ACTION; FAIL 2 over everything."""
-    from stewart_drake.live.verify_command import exit_status
+    from stewart_drake.verification.command import exit_status
 
     assert exit_status(["PASS", "PASS"]) == 0
     assert exit_status(["PASS", "ACTION"]) == 4
@@ -1084,7 +1084,7 @@ def test_the_action_level_is_checked_against_the_tolerance_at_its_edges():
     """Equal to the tolerance is allowed on both kinds of axis; zero, negative, NaN or beyond
     it is refused, naming the option, the kind of axis, the bound and the value."""
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.organ_motion.verdict_levels import check_action_level
+    from stewart_drake.verification.verdict_levels import check_action_level
 
     tol = (1e-4, math.radians(0.1))
     check_action_level(tol, tol)
@@ -1106,7 +1106,7 @@ def test_the_action_level_is_checked_against_the_tolerance_at_its_edges():
 def test_the_action_words_name_each_axis_beyond_the_level():
     """None beyond: nothing said. Beyond: the level in both units, then each axis with its RMS
     error in its own unit, in the order given, and what ACTION means."""
-    from stewart_drake.organ_motion.verdict_levels import action_words
+    from stewart_drake.verification.verdict_levels import action_words
 
     level = (7e-5, math.radians(0.07))
     assert action_words({}, level) == ""

@@ -1,7 +1,7 @@
-"""The causes a pair's verdict names (live/pair_causes.py), each on both sides of its edge, on
-motions written here: a breathing shape (cos^4, its own written-out waveform) on one axis, the
-measured motion made from it (scaled, reversed, shifted, at another period, noise), and the
-figures each message prints computed again here by a brute-force shift search."""
+"""The causes a pair's verdict names (verification/pair_causes.py), each on both sides of its
+edge, on motions written here: a breathing shape (cos^4, its own written-out waveform) on one
+axis, the measured motion made from it (scaled, reversed, shifted, at another period, noise), and
+the figures each message prints computed again here by a brute-force shift search."""
 
 import math
 import re
@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stewart_drake.live.pair_causes import (
+from stewart_drake.verification.pair_causes import (
     PLAYED_RATIO,
     SWAPPED_RATIO,
     _played_words,

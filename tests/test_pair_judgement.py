@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.live.pair_judgement import (
+from stewart_drake.verification.pair_judgement import (
     MIN_INSIDE,
     RELATIVE_SEARCH_S,
     check_one_clock,
@@ -20,7 +20,7 @@ from stewart_drake.live.pair_judgement import (
     search_half_width,
     span_mask,
 )
-from stewart_drake.organ_motion.verification import judged_window
+from stewart_drake.verification.verify import judged_window
 
 NAMES = ("a.csv", "b.csv")
 HEAD = "a.csv (internal) against b.csv (surrogate) on one clock: "
@@ -216,10 +216,10 @@ def test_the_pairs_options_reach_verify_as_given(tmp_path):
     frames given are each the one verify judges with."""
     from test_relative_latency import DELAY_S, SURROGATE, TRACE, pair_files
 
-    from stewart_drake.live.pair_judgement import verify_pair
-    from stewart_drake.organ_motion.measured_motion import read_measured
-    from stewart_drake.organ_motion.verification import DEFAULT_TOLERANCE
     from stewart_drake.references.traces import load_trace
+    from stewart_drake.verification.measured_motion import read_measured
+    from stewart_drake.verification.pair_judgement import verify_pair
+    from stewart_drake.verification.verify import DEFAULT_TOLERANCE
 
     files = pair_files(tmp_path)
 

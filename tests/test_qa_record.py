@@ -15,7 +15,7 @@ from test_verify import MARKER_COLUMNS, PARAMS, phantom_run, tracker_view, write
 
 from stewart_drake.calibration.join import read_encoder_log, write_encoder_log
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.measured_motion import EMULATED_BUS
+from stewart_drake.verification.measured_motion import EMULATED_BUS
 
 reportlab = pytest.importorskip("reportlab", reason='needs the qa extra: pip install -e ".[qa]"')
 
@@ -260,7 +260,7 @@ def test_a_file_changed_while_it_is_judged_gets_no_record(tmp_path, exports, cap
     record hashed the changed file."""
     import shutil
 
-    from stewart_drake.organ_motion import verification_report
+    from stewart_drake.verification import report as verification_report
 
     export = Path(shutil.copy(exports[0], tmp_path / "export.csv"))
     write = verification_report.write_verification
@@ -282,7 +282,7 @@ def test_a_file_changed_while_it_is_judged_gets_no_record(tmp_path, exports, cap
 def test_an_interrupted_record_leaves_neither_file(tmp_path, exports, monkeypatch, ctrl_c):
     """Ctrl-C while the PDF is drawn: neither the PDF nor the JSON of that record stays (a JSON
     saying PASS beside an empty PDF was left)."""
-    from stewart_drake.organ_motion import qa_record
+    from stewart_drake.verification import qa_record
 
     def drawn_then_interrupted(pdf, data, figure):
         Path(pdf).write_bytes(b"%PDF-1.4 cut")
@@ -381,7 +381,7 @@ def test_the_reference_is_recorded_as_the_command_line_chose_it():
     """The motion with every --param and --add given, and the trace options that differ from
     their defaults, in the order given; nothing else."""
     from stewart_drake.cli.registry import build_parser
-    from stewart_drake.live.verify_record_options import reference_words
+    from stewart_drake.verification.record_options import reference_words
 
     parser = build_parser()
     args = parser.parse_args(

@@ -1,4 +1,4 @@
-"""The QA record's values (organ_motion/qa_record.py: ``results_data``, the axes' levels, the
+"""The QA record's values (verification/qa_record.py: ``results_data``, the axes' levels, the
 measuring device, the inputs' identities, the record's files) from a verification made here by
 hand, each field held to its unit with figures written in the test: the tolerance 0.1 deg (not
 0.001745), rotations in degrees (not radians), the latency 12 ms (not 0.012), the gamma pass
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
-from stewart_drake.organ_motion import qa_record
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.qa_record import (
+from stewart_drake.verification import qa_record
+from stewart_drake.verification.measured_motion import MeasuredMotion
+from stewart_drake.verification.qa_record import (
     LEVELS,
     MAX_TEXT,
     RECORD_SCHEMA,
@@ -392,7 +392,7 @@ def test_an_undrawable_operator_is_refused_naming_the_option_and_the_typeface():
 def drawn(monkeypatch):
     """write_record with the PDF and its plots replaced by stand-ins that record what they were
     given (the PDF's own tests draw it)."""
-    from stewart_drake.organ_motion import qa_record_figure
+    from stewart_drake.verification import qa_record_figure
 
     made = {}
 

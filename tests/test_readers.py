@@ -109,7 +109,7 @@ ALLOWED = {
     ("station/bus/driver.py", "DynamixelBus.__enter__", "self.open"),
     # A QA record's files, created empty and exclusively before they are written (nothing read),
     # and the PNG verify has just written, measured for the record's page.
-    ("organ_motion/qa_record.py", "_exclusive", "os.open"),
+    ("verification/qa_record.py", "_exclusive", "os.open"),
 }
 
 

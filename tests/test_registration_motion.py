@@ -1,5 +1,5 @@
 """A tracker registered by a known motion
-(:mod:`~stewart_drake.organ_motion.registration_motion`): the frames fitted to the library's
+(:mod:`~stewart_drake.verification.registration_motion`): the frames fitted to the library's
 registration motion as the emulated tracker saw it, held to that tracker's true frames
 (:func:`~stewart_drake.calibration.tracker.emulated_setup`), its clock to the delay the run was
 made with, its residual to the noise added; the fit's pieces (Kabsch, the rotation's error, the
@@ -18,16 +18,16 @@ from scipy.spatial.transform import Rotation
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration.tracker import emulated_setup
-from stewart_drake.organ_motion import alignment
-from stewart_drake.organ_motion import registration_motion as rm
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.registration_motion import (
+from stewart_drake.references.organ.library import make_motion
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.verification import alignment
+from stewart_drake.verification import registration_motion as rm
+from stewart_drake.verification.measured_motion import MeasuredMotion
+from stewart_drake.verification.registration_motion import (
     MotionRegistration,
     fit_registration,
     rigid_shift,
 )
-from stewart_drake.references.organ.library import make_motion
-from stewart_drake.robot.geometry import StewartGeometry
 
 SETUP = emulated_setup(StewartGeometry())
 T_TB = SETUP.X_TB.GetAsMatrix4()

@@ -15,15 +15,15 @@ from scipy.interpolate import CubicSpline
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import main
-from stewart_drake.live.pair_judgement import (
+from stewart_drake.organ_motion.examples import FOLDER
+from stewart_drake.references.traces import load_trace
+from stewart_drake.verification.measured_motion import read_measured
+from stewart_drake.verification.measured_verdict import seconds
+from stewart_drake.verification.pair_judgement import (
     MAX_RELATIVE_LATENCY_S,
     RELATIVE_SEARCH_S,
     verify_pair,
 )
-from stewart_drake.organ_motion.examples import FOLDER
-from stewart_drake.organ_motion.measured_motion import read_measured
-from stewart_drake.organ_motion.measured_verdict import seconds
-from stewart_drake.references.traces import load_trace
 
 TRACE, SURROGATE = FOLDER / "trace.txt", FOLDER / "surrogate.txt"
 #: When both platforms started on the camera's clock, s; the camera's offsets and noise, mm.

@@ -22,14 +22,14 @@ from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration import tracker
 from stewart_drake.calibration.join import write_encoder_log
 from stewart_drake.cli.main import main
-from stewart_drake.live.external_reference import model_reference
-from stewart_drake.live.pair_command import read_encoder_pair
-from stewart_drake.live.pair_judgement import verify_pair
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.references.traces import load_trace
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.verification.external_reference import model_reference
+from stewart_drake.verification.pair_command import read_encoder_pair
+from stewart_drake.verification.pair_judgement import verify_pair
 
 GEOMETRY = robot_geometry(load_scenario("phantom_hardware"))
 INTERNAL = make_motion("breathing", {})

@@ -581,8 +581,8 @@ def test_a_bus_is_said_emulated_only_while_an_emulator_this_process_started_serv
     words the run prints); once it is closed, or for any other port, the servos on that port,
     not emulated by this run."""
     from stewart_drake.live.emulator_process import bus_words, start_emulator
-    from stewart_drake.organ_motion.measured_motion import EMULATED_BUS
     from stewart_drake.station.bus.servos import DynamixelBusConfig
+    from stewart_drake.verification.measured_motion import EMULATED_BUS
 
     scenario = load_scenario(ROBOT_SCENARIO)
     scenario.bus = DynamixelBusConfig(**LOADED_MACHINE_BUS)

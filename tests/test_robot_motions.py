@@ -20,13 +20,13 @@ from stewart_drake.calibration.join import (  # noqa: E402
     read_table,
 )
 from stewart_drake.cli.main import main  # noqa: E402
-from stewart_drake.organ_motion.measured_motion import encoder_motion  # noqa: E402
 from stewart_drake.references.organ.library import make_motion  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.plan import robot_geometry  # noqa: E402
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
 from stewart_drake.station.bus import driver  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.verification.measured_motion import encoder_motion  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home

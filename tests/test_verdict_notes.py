@@ -1,4 +1,4 @@
-"""The verdict line's notes on what a verdict did not judge (organ_motion/verdict_notes.py),
+"""The verdict line's notes on what a verdict did not judge (verification/verdict_notes.py),
 held to words and figures written here by hand: the samples left uncompared and when a
 searched clock leaving them cannot judge (either side of 10 %), the pauses judged across, the
 constants removed beyond the tolerance (either side of it, each sign, each unit), and the
@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stewart_drake.organ_motion.verdict_notes import (
+from stewart_drake.verification.verdict_notes import (
     MAX_UNCOMPARED_SHARE,
     OUTLIER_SIGMAS,
     OUTLIER_TOLERANCES,

@@ -1,4 +1,4 @@
-"""``verify`` itself (:mod:`~stewart_drake.organ_motion.verification`) on synthetic motions of
+"""``verify`` itself (:mod:`~stewart_drake.verification.verify`) on synthetic motions of
 known clock, delay, offsets and frames, 20 s at 50 Hz: the latency, the shift, the offsets
 removed and the window against the values the motion was made with, the registered frames
 against the emulated tracker's truth; and each step's rules (the shifts searched, the window of
@@ -14,14 +14,14 @@ from harmonic_motion import Harmonics, along
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration.tracker import emulated_setup
-from stewart_drake.organ_motion import measured_span as span
-from stewart_drake.organ_motion import verification as vn
-from stewart_drake.organ_motion.alignment import Frames
 from stewart_drake.organ_motion.fidelity import AXES, time_lag
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.verdict_notes import uncompared_words
-from stewart_drake.organ_motion.verification import verify
 from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.verification import measured_span as span
+from stewart_drake.verification import verify as vn
+from stewart_drake.verification.alignment import Frames
+from stewart_drake.verification.measured_motion import MeasuredMotion
+from stewart_drake.verification.verdict_notes import uncompared_words
+from stewart_drake.verification.verify import verify
 
 #: A breath along X with a tilt about Y, every 4 s, about a pose 0.3 m up.
 MOTION = Harmonics(
@@ -417,7 +417,7 @@ def test_a_recording_that_runs_on_past_the_motion_fails_and_says_what_would_tell
 
 
 def test_the_words_on_the_samples_left_out():
-    from stewart_drake.organ_motion.verdict_notes import uncompared_words
+    from stewart_drake.verification.verdict_notes import uncompared_words
 
     counts = {"samples": 1000, "before": 60, "after": 41, "before_s": 3.0, "after_s": 0.5}
     words, why = uncompared_words({**counts, "whole": True})
@@ -832,7 +832,7 @@ def test_a_planned_pause_is_refused_by_default_naming_the_option_and_judged_as_s
 
 
 def test_many_pauses_are_counted_past_the_third():
-    from stewart_drake.organ_motion.verdict_notes import pause_words
+    from stewart_drake.verification.verdict_notes import pause_words
 
     words = pause_words(((10.0, 1.0), (20.0, 2.0), (30.0, 3.0), (40.0, 4.0), (50.0, 5.0)))
     assert words == (

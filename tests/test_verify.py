@@ -21,12 +21,12 @@ from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration.join import write_encoder_log
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion, read_measured
-from stewart_drake.organ_motion.verification import verify
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.verification.measured_motion import MeasuredMotion, read_measured
+from stewart_drake.verification.verify import verify
 
 _TOOL = Path(__file__).resolve().parent.parent / "tools" / "make_examples.py"
 _SPEC = importlib.util.spec_from_file_location("make_examples", _TOOL)

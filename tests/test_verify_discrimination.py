@@ -29,10 +29,10 @@ from test_verify import (
 from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration.registration_file import read_registration
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.verdict_sensitivity import sensitivity
-from stewart_drake.organ_motion.verification import verify
 from stewart_drake.references.organ.library import make_motion
+from stewart_drake.verification.measured_motion import MeasuredMotion
+from stewart_drake.verification.verdict_sensitivity import sensitivity
+from stewart_drake.verification.verify import verify
 
 #: The tolerance of the battery: verify's default, 0.1 mm and 0.1 deg RMS per axis.
 TOLERANCE = (1e-4, np.radians(0.1))

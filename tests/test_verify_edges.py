@@ -30,10 +30,10 @@ from test_verify import (
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.registration_motion import fit_registration
-from stewart_drake.organ_motion.verification import verify
 from stewart_drake.references.organ.library import make_motion
+from stewart_drake.verification.measured_motion import MeasuredMotion
+from stewart_drake.verification.registration_motion import fit_registration
+from stewart_drake.verification.verify import verify
 
 TOLERANCE = (1e-4, math.radians(0.1))
 

@@ -26,9 +26,9 @@ from interact_method import (
 )
 
 from stewart_drake.cli.main import main
-from stewart_drake.live.pair_judgement import verify_pair
-from stewart_drake.organ_motion.measured_motion import read_measured
 from stewart_drake.references.traces import load_trace
+from stewart_drake.verification.measured_motion import read_measured
+from stewart_drake.verification.pair_judgement import verify_pair
 
 DELAY_S, OFFSET_MM, NOISE_MM = 5.45, 12.3, 0.6
 

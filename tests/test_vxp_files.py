@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.organ_motion.measured_motion import read_measured
 from stewart_drake.references.trace_files import read_trace_table, trace_samples
 from stewart_drake.references.traces import load_trace
+from stewart_drake.verification.measured_motion import read_measured
 
 LAYOUT_16 = "amplitude,phase,timestamp,validflag,ttlin,mark,ttlout"
 

@@ -83,7 +83,7 @@ MODULES = {
     # verify's modules against their unit tests, not tests/test_verify*.py, which run the
     # command and write its reports in process: 35 s with the JIT off, for every mutant of verify.
     # test_registration_motion.py too: the Kabsch search over shifts (rigid_shift) it fits with.
-    "stewart_drake/organ_motion/alignment.py": (
+    "stewart_drake/verification/alignment.py": (
         "tests/test_alignment.py",
         "tests/test_registration_motion.py",
     ),
@@ -95,22 +95,22 @@ MODULES = {
         "tests/test_measured_verdict.py",
         "tests/test_predictors.py",
     ),
-    "stewart_drake/organ_motion/measured_verdict.py": ("tests/test_measured_verdict.py",),
-    "stewart_drake/organ_motion/verdict_notes.py": (
+    "stewart_drake/verification/measured_verdict.py": ("tests/test_measured_verdict.py",),
+    "stewart_drake/verification/verdict_notes.py": (
         "tests/test_verdict_notes.py",
         "tests/test_verification.py",
     ),
-    "stewart_drake/organ_motion/verdict_levels.py": ("tests/test_measured_verdict.py",),
+    "stewart_drake/verification/verdict_levels.py": ("tests/test_measured_verdict.py",),
     # The record's values from a verification made by hand (tests/test_qa_record_data.py), not
     # tests/test_qa_record.py, which runs the command and draws the PDF: 10 s a mutant.
-    "stewart_drake/organ_motion/qa_record.py": ("tests/test_qa_record_data.py",),
-    "stewart_drake/organ_motion/verdict_sensitivity.py": (
+    "stewart_drake/verification/qa_record.py": ("tests/test_qa_record_data.py",),
+    "stewart_drake/verification/verdict_sensitivity.py": (
         "tests/test_measured_verdict.py",
         "tests/test_verify_discrimination.py",
     ),
-    "stewart_drake/organ_motion/verification.py": ("tests/test_verification.py",),
-    "stewart_drake/organ_motion/measured_span.py": ("tests/test_verification.py",),
-    "stewart_drake/organ_motion/registration_motion.py": ("tests/test_registration_motion.py",),
+    "stewart_drake/verification/verify.py": ("tests/test_verification.py",),
+    "stewart_drake/verification/measured_span.py": ("tests/test_verification.py",),
+    "stewart_drake/verification/registration_motion.py": ("tests/test_registration_motion.py",),
     "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),
     # test_predictors.py too: the settings' refusals, the bound, the envelope and the shrinkage's
     # gain, held to values it computes apart (4 s with the JIT off).
@@ -139,12 +139,12 @@ MODULES = {
     "stewart_drake/station/surrogate/lag_matching.py": ("tests/test_lag_matching.py",),
     "stewart_drake/station/surrogate/lag_matched_goal.py": ("tests/test_lag_matching.py",),
     "stewart_drake/station/surrogate/linear_stage.py": ("tests/test_surrogate_servo.py",),
-    "stewart_drake/live/pair_judgement.py": (
+    "stewart_drake/verification/pair_judgement.py": (
         "tests/test_relative_latency.py",
         "tests/test_pair_judgement.py",
     ),
     # The causes a pair's FAIL names, each at its edge on motions the test writes out.
-    "stewart_drake/live/pair_causes.py": ("tests/test_pair_causes.py",),
+    "stewart_drake/verification/pair_causes.py": ("tests/test_pair_causes.py",),
     # The crank servo of the bus robots: its law and estimator (compiled, run as Python), its
     # LeafSystem, its design and its driver, against the law written out in the test; its
     # margins against the loop's characteristic roots; the servos' own loop's goal stream.

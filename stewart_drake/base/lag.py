@@ -1,10 +1,11 @@
 """The lag of a measured signal behind its command by RMSE alignment in continuous shifts: one
 search for every lag the package measures.
 
-Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.verification`) and its
-reversed-axis test (:mod:`stewart_drake.organ_motion.measured_verdict`), the pair's relative
-latency on measurements (``verify --surrogate``, :mod:`stewart_drake.live.pair_judgement`) and its
-swap test (:mod:`stewart_drake.live.pair_causes`), a reproduced pair's lags and its external's
+Its callers: ``verify``'s clock (:mod:`stewart_drake.verification.verify`) and its
+reversed-axis test (:mod:`stewart_drake.verification.measured_verdict`), the pair's
+relative latency on measurements (``verify --surrogate``,
+:mod:`stewart_drake.verification.pair_judgement`) and its swap test
+(:mod:`stewart_drake.verification.pair_causes`), a reproduced pair's lags and its external's
 lead (:mod:`stewart_drake.station.surrogate.sync_figures`), the robot's lags from its encoders
 (:mod:`stewart_drake.station.surrogate.encoder_relative_latency`), ``reproduce``'s lag of the
 achieved motion (:func:`stewart_drake.organ_motion.fidelity.time_lag`) and a tracker's clock

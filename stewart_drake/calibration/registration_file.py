@@ -15,7 +15,7 @@ how they are fitted: :mod:`~.registration`.
         - {platform_m: [x, y, z], tracker_m: [x, y, z]}
 
 A REG.yaml may instead hold the frames fitted once to a registration motion (``stewart-drake
-verify --save-registration``, :mod:`~stewart_drake.organ_motion.registration_motion`), which
+verify --save-registration``, :mod:`~stewart_drake.verification.registration_motion`), which
 :func:`motion_frames_yaml` writes and :func:`read_registration` reads::
 
     motion_frames:

@@ -18,11 +18,12 @@ from ..actuator import command as actuator_command
 from ..analysis import command as analysis_command
 from ..design import command as design_command
 from ..evaluation import command as evaluation_command
-from ..live import calibrate_command, pair_command
+from ..live import calibrate_command
 from ..live import command as live_command
 from ..organ_motion import command as organ_motion_command
 from ..paper import command as paper_command
 from ..tuner import command as tuner_command
+from ..verification import pair_command
 from ..viz import command as viz_command
 from . import core
 

@@ -1,6 +1,6 @@
 """The robot live at the command line: ``stewart-drake teleop`` (the robot as built at real
 time, driven from Meshcat's sliders), ``robot`` (the controller on the servos, or on the bus
-emulator); ``verify``'s parser and its motion judged alone are :mod:`.verify_command`."""
+emulator). ``verify`` is :mod:`stewart_drake.verification.command`'s."""
 
 from __future__ import annotations
 
@@ -25,9 +25,7 @@ from .robot_options import add_drive_arguments, add_session_arguments
 
 
 def register(sub) -> None:
-    """Add the ``teleop`` and ``robot`` commands to ``sub``, the ``stewart-drake`` subparsers
-    (``verify``, whose parser is :mod:`.verify_command`'s, is added with its surrogate's options
-    by :func:`stewart_drake.live.pair_command.register`)."""
+    """Add the ``teleop`` and ``robot`` commands to ``sub``, the ``stewart-drake`` subparsers."""
     _add_teleop_command(sub)
     _add_robot_command(sub)
 

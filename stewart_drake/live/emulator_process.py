@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 
 from ..base.errors import BusError
-from ..organ_motion.measured_motion import EMULATED_BUS
 from ..robot.kinematics import X_HOME
+from ..station.bus.emulator_config import EMULATED_BUS
 
 
 @dataclass(frozen=True)

@@ -1,11 +1,10 @@
 """Organ motion reproduced: a breathing, heartbeat or recorded trace run on the robot as
 built, with or without learning (:mod:`.reproduction`, ``stewart-drake reproduce``), its fidelity
 (RMS, peak, lag, gamma pass rate, harmonics: :mod:`.fidelity`) with a verdict, and its report
-(:mod:`.fidelity_report`, :mod:`.fidelity_replay`); a motion measured on a real phantom judged
-with the same figures (read: :mod:`.measured_motion`; put on the reference's clock and frame:
-:mod:`.alignment`; judged: :mod:`.verification`, :mod:`.verification_report`; ``stewart-drake
-verify``); the library's and the traces' studies; example inputs to try them on
-(:mod:`.examples`, ``stewart-drake examples``)."""
+(:mod:`.fidelity_report`, :mod:`.fidelity_replay`); the library's and the traces' studies;
+example inputs to try them on (:mod:`.examples`, ``stewart-drake examples``). A motion measured
+on a real phantom is judged with the same figures and report by ``stewart-drake verify``
+(:mod:`stewart_drake.verification`)."""
 
 #: The scenario organ motion is reproduced on unless told (``reproduce``, the trace study): the
 #: robot as built with its LQI set for organ motion, the reference's inverse dynamics and 0.7 x

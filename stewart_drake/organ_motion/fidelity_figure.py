@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
@@ -15,8 +15,10 @@ from ..base.fileio import atomic_write
 from .fidelity import AXES, COMPARED, format_angle, format_length, format_window, verdict
 from .reproduction import Reproduction, learning_words
 
-if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
-    from .verification import Verification
+#: A measured motion's result, written by the same functions as a reproduction's: verify's
+#: :class:`~stewart_drake.verification.verify.Verification`, which sits in a package above this
+#: one (it imports these functions) and is named here only in words.
+Verification = Any
 
 #: What the report writes for a figure of an axis the measurement did not see.
 NOT_MEASURED = "not measured"

@@ -3,10 +3,11 @@ against a tolerance (:func:`report_markdown`), one PNG of the poses, the errors,
 the harmonics (:func:`~.fidelity_figure.plot_report`), and the figures as JSON
 (:func:`write_report`).
 
-A measured motion (``stewart-drake verify``, :class:`~.verification.Verification`) is written
-by the same functions: its page is :mod:`~.verification_report`'s, made of the same figure
-lines (:func:`fidelity_lines`, :func:`startup_lines`, :func:`anchor_lines`); the figure and the
-JSON are these, the axes it did not measure said so.
+A measured motion (``stewart-drake verify``,
+:class:`~stewart_drake.verification.verify.Verification`) is written by the same functions: its
+page is :mod:`~stewart_drake.verification.report`'s, made of the same figure lines
+(:func:`fidelity_lines`, :func:`startup_lines`, :func:`anchor_lines`); the figure and the JSON
+are these, the axes it did not measure said so.
 """
 
 from __future__ import annotations
@@ -14,7 +15,6 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +28,7 @@ from .fidelity import (
 )
 from .fidelity_figure import (
     NOT_MEASURED,
+    Verification,
     compared,
     compared_words,
     learning_of,
@@ -35,9 +36,6 @@ from .fidelity_figure import (
     verdict_of,
 )
 from .reproduction import Reproduction
-
-if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
-    from .verification import Verification
 
 
 def _feedforward_line(last: dict) -> str:
@@ -276,7 +274,7 @@ def write_report(
 
     Args:
         rep: a :class:`~.reproduction.Reproduction`, or a
-            :class:`~.verification.Verification` (a measured motion).
+            :class:`~stewart_drake.verification.verify.Verification` (a measured motion).
         out: the folder. tolerance: (m, rad) of the verdict. stem: the files' name (default
             ``reproduce_<name>``).
         text: the Markdown page (default :func:`report_markdown`'s); the figure's link is

@@ -78,6 +78,11 @@ KT_PER_K, RESISTANCE_PER_K = -0.0012, 0.0039
 SERVOS = ("realistic", "ideal")
 
 
+#: How a run's bus is named when its servos were the emulator's: the start of an encoder log's
+#: bus line (the session writes it; verify's reader and record tell an emulated run by it).
+EMULATED_BUS = "emulated: "
+
+
 @dataclass
 class EmulatorConfig:
     """What the bus emulator puts behind the bus (module docstring). ``null``: drawn from

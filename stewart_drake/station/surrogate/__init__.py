@@ -5,4 +5,4 @@ matched to the platform (`lag_matching`, `lag_matched_goal`); the external signa
 a recorded trace (`trace`, `pairs`) or from a library motion through a correlation model
 (`correlation`); and the figures that judge the pair (`sync_figures`: relative latency, lead,
 hysteresis, correlation, drift; `report`; on the robot, `encoder_relative_latency`). A measured
-pair is judged by ``verify --surrogate`` (:mod:`stewart_drake.live.pair_judgement`)."""
+pair is judged by ``verify --surrogate`` (:mod:`stewart_drake.verification.pair_judgement`)."""

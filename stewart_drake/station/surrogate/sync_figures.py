@@ -11,7 +11,7 @@ as docs/index.md defines them):
   against the surrogate (the surrogate early), so the pair's reproduced lead of the external is
   the asked lead plus the relative latency. The sign is IntERAct's (``RMSEAlignMethod.m``:
   ``latency = shift6D - shift1D``) and ``verify --surrogate``'s
-  (:mod:`stewart_drake.live.pair_judgement`).
+  (:mod:`stewart_drake.verification.pair_judgement`).
 - a **lead** > 0: the external reaches each phase of the breath before the internal does
   (external(t) ~ k internal(t + lead)).
 - the **hysteresis area** > 0: the loop in the (internal, external) plane runs clockwise, as it

@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..organ_motion.fidelity import format_window
 from ..references.motion import Reference, reference_cycles
-from .fidelity import format_window
 from .verdict_notes import MAX_UNCOMPARED_SHARE
 
 #: With the clocks' relation known, latencies up to this many times the largest that passes
@@ -136,7 +136,7 @@ def check_length(reference: Reference, t: np.ndarray) -> None:
 
 
 def uncompared(t_all, t_ref, whole: bool, reference: Reference | None = None) -> dict:
-    """:attr:`~.verification.Verification.uncompared` of the recording's times ``t_all`` on the
+    """:attr:`~.verify.Verification.uncompared` of the recording's times ``t_all`` on the
     reference's clock, of which ``t_ref`` are compared; ``whole``: the clock known or searched
     among the shifts that compare the whole recording (:func:`search_range`); ``reference``: the
     motion, whose length (from its start to its ``end_time``; none for one that repeats or has

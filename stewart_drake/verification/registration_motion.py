@@ -119,7 +119,7 @@ def _check_registration_input(measured: MeasuredMotion, name: str, max_gap_s: fl
     """The refusals of :func:`fit_registration` made before any fit: not a tracker's X, Y and
     Z, some rotations but not three, a step between samples longer than ``max_gap_s``, or
     shorter than :data:`MIN_REGISTRATION_S` (``name``: the reference's, for the message)."""
-    from .verification import _samples, seconds
+    from .verify import _samples, seconds
 
     if measured.kind != "tracker" or not np.all(measured.measured[3:]):
         raise InvalidConfigError(

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .fidelity import AXES, MOVING_P2P, format_angle, format_length
+from ..organ_motion.fidelity import AXES, MOVING_P2P, format_angle, format_length
 
 #: The largest turn of the measured axes from the base frame's that is named alone, rad: beyond
 #: it a turn is named beside each axis's causes (a quarter turn is also an axis swapped or

@@ -1,6 +1,6 @@
 """What a QA record of ``stewart-drake verify`` says of its run, from the command line: the
 phantom it names and the reference as the user chose it
-(:mod:`~stewart_drake.organ_motion.qa_record` writes them; :mod:`.verify_command` passes
+(:mod:`~stewart_drake.verification.qa_record` writes them; :mod:`.command` passes
 them)."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ def phantom_words(args, measured) -> str:
     """The phantom a record names: for the robot's encoder log the robot that wrote it (its
     ``--scenario``, whose forward kinematics read it); for a tracker's file the ``--scenario``
     given, or "" when the default stands (it names no phantom: ``--phantom-serial`` does).
-    ``measured``: the :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion`."""
+    ``measured``: the :class:`~stewart_drake.verification.measured_motion.MeasuredMotion`."""
     from ..organ_motion import SCENARIO
 
     if measured.from_the_robot:

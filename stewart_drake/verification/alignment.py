@@ -43,9 +43,9 @@ from scipy.spatial.transform import Rotation
 
 from ..base.columns import uniform_columns
 from ..base.errors import InvalidConfigError
+from ..organ_motion.fidelity import AXES, format_window
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
-from .fidelity import AXES, format_window
 
 #: A rotation's weight against a translation in the clock's score, m per rad (a point 0.15 m
 #: from the axis).

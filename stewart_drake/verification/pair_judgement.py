@@ -7,7 +7,7 @@ their **relative latency**, as measured against as asked.
 is whether the phantom keeps the two in the relation the pair was recorded with (the external
 leading or lagging the internal by its own 0.4-1.8 s, IntERAct's traces), not each one's delay
 from its command. Each measurement is put on its reference's clock by ``verify``'s own clock
-search (:mod:`~stewart_drake.organ_motion.alignment`: the shift d with the measured time + d the
+search (:mod:`~stewart_drake.verification.alignment`: the shift d with the measured time + d the
 reference's time whose pose a sample shows, nothing fitted but the clock and a constant per
 measured axis). With the two measurements on one clock (one camera seeing both platforms, or two
 instruments sharing a clock) and the two references on one clock (the recorded pair, both from
@@ -23,9 +23,9 @@ al. 2026, ``RMSEAlignMethod.m``: ``latency = shift6D - shift1D``, each shift the
 measured motion behind its command).
 
 **How it is found** (:func:`verify_pair`): the internal motion by
-:func:`~stewart_drake.organ_motion.verification.verify`, as ``verify`` alone judges it (its
+:func:`~stewart_drake.verification.verify.verify`, as ``verify`` alone judges it (its
 frames, its clock); the surrogate's shift then searched on the internal's clock, within
-:data:`RELATIVE_SEARCH_S` (or :data:`~stewart_drake.organ_motion.measured_span.SEARCH_FACTOR`
+:data:`RELATIVE_SEARCH_S` (or :data:`~stewart_drake.verification.measured_span.SEARCH_FACTOR`
 times the bound, if wider; at most 0.45 of a periodic surrogate's period, so a breath earlier or
 later is never taken) of d_internal, by the same search (FFT over every shift on a grid, then to a
 fraction of a sample: :func:`relative_shift`). The surrogate's own fidelity is verify's on its
@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from ..base.errors import InvalidConfigError
-from ..organ_motion.measured_verdict import (
+from .measured_verdict import (
     EDGE_S,
     seconds,
 )
@@ -71,7 +71,7 @@ from .pair_causes import swapped_words, why_not_following
 #: of a 10 mm, 4 s breath.
 MAX_RELATIVE_LATENCY_S = 0.1
 #: Relative latencies up to this, s, are searched either way (or
-#: :data:`~stewart_drake.organ_motion.measured_span.SEARCH_FACTOR` times the bound, if wider): a
+#: :data:`~stewart_drake.verification.measured_span.SEARCH_FACTOR` times the bound, if wider): a
 #: relative latency beyond the bound is found and fails rather than hidden at the edge; below half
 #: a breath (about 4 s), so that a breath earlier or later is not matched.
 RELATIVE_SEARCH_S = 1.5
@@ -118,7 +118,7 @@ class PairVerification:
 
     Attributes:
         internal, surrogate: each motion's
-            :class:`~stewart_drake.organ_motion.verification.Verification`, as ``verify`` judges
+            :class:`~stewart_drake.verification.verify.Verification`, as ``verify`` judges
             it alone (its figures, its verdict, its latency).
         relative_latency_s: tau_rel = d_surrogate - d_internal, s (module docstring).
         surrogate_shift_s: d_surrogate, the surrogate's shift found on the internal's clock, s
@@ -209,9 +209,9 @@ DEFINITION = (
 
 def search_half_width(reference, max_relative_latency_s: float) -> float:
     """The relative latencies searched either way, s: :data:`RELATIVE_SEARCH_S`, or
-    :data:`~stewart_drake.organ_motion.measured_span.SEARCH_FACTOR` times the bound if wider; at
+    :data:`~stewart_drake.verification.measured_span.SEARCH_FACTOR` times the bound if wider; at
     most 0.45 of the surrogate reference's period when it repeats."""
-    from ..organ_motion.measured_span import SEARCH_FACTOR
+    from .measured_span import SEARCH_FACTOR
 
     width = max(RELATIVE_SEARCH_S, SEARCH_FACTOR * max_relative_latency_s)
     period = getattr(reference, "repeat_period_s", None)
@@ -225,10 +225,10 @@ MIN_INSIDE = 10
 def span_mask(reference, t_ref) -> np.ndarray:
     """(n,) bool: which of the times ``t_ref`` (s, on the reference's clock) fall inside the
     reference's span, [0, its ``end_time``] (no end: from 0 on;
-    :func:`~stewart_drake.organ_motion.alignment.in_span`, as ``verify`` reads it); all of
+    :func:`~stewart_drake.verification.alignment.in_span`, as ``verify`` reads it); all of
     them when fewer than :data:`MIN_INSIDE` do (a measurement mostly outside is compared whole
     rather than on a handful of samples)."""
-    from ..organ_motion.alignment import in_span
+    from .alignment import in_span
 
     t_ref = np.asarray(t_ref, dtype=float)
     use = in_span(reference, t_ref)
@@ -244,12 +244,12 @@ def relative_shift(reference, measured, around_s: float, half_width_s: float) ->
 
     Args:
         reference: the surrogate's reference. measured: its
-            :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion`.
+            :class:`~stewart_drake.verification.measured_motion.MeasuredMotion`.
         around_s, half_width_s: s.
     """
     from ..base.lag import best_shift
-    from ..organ_motion.alignment import Frames, axis_weights, reference_seen
-    from ..organ_motion.verification import COARSE_STEP_S
+    from .alignment import Frames, axis_weights, reference_seen
+    from .verify import COARSE_STEP_S
 
     t, y = measured.t, np.asarray(measured.poses, dtype=float)
     frames = Frames("axes")
@@ -273,7 +273,7 @@ def _at_shift(reference, measured, d: float) -> tuple[np.ndarray, np.ndarray, np
     """(t, x, x_d) of ``measured`` put on ``reference``'s clock by the shift d (s), over the
     samples inside the reference's span (:func:`span_mask`), each measured axis less its mean
     difference."""
-    from ..organ_motion.alignment import reference_poses
+    from .alignment import reference_poses
 
     t_ref = measured.t + d
     keep = span_mask(reference, t_ref)
@@ -386,20 +386,20 @@ def verify_pair(
             (:class:`~stewart_drake.references.motion.Reference`; the surrogate's from
             :func:`~stewart_drake.references.traces.load_trace`, a 2-column file on SI).
         internal_measured, surrogate_measured: the two measurements, on one clock
-            (:func:`~stewart_drake.organ_motion.measured_motion.read_measured`).
+            (:func:`~stewart_drake.verification.measured_motion.read_measured`).
         clock_offset_s, frame, registration, max_latency_s, tolerance, max_gap_s: as
-            :func:`~stewart_drake.organ_motion.verification.verify` takes them (the surrogate is
+            :func:`~stewart_drake.verification.verify.verify` takes them (the surrogate is
             judged with the frames "axes": its offset removed on its axis); None: verify's
             defaults.
         max_relative_latency_s: the largest |relative latency| that passes, s (> 0).
     Returns:
         :class:`PairVerification`.
     Raises:
-        InvalidConfigError: what :func:`~stewart_drake.organ_motion.verification.verify` refuses
+        InvalidConfigError: what :func:`~stewart_drake.verification.verify.verify` refuses
             of either; a bound not a positive number; two measurements whose times do not
             overlap (not on one clock).
     """
-    from ..organ_motion import verification
+    from . import verify as verification
 
     if not max_relative_latency_s > 0 or not math.isfinite(max_relative_latency_s):
         raise InvalidConfigError(

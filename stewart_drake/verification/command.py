@@ -1,10 +1,10 @@
 """``stewart-drake verify``: a motion measured on a real phantom (a tracker's export, or the
 robot's encoder log) judged against the reference it was asked to follow, with the report of
-``reproduce`` (:mod:`stewart_drake.organ_motion.verification`).
+``reproduce`` (:mod:`stewart_drake.verification.verify`).
 
-It lives with the robot live because it joins two features of one rank: the organ-motion
-library, its readers and its report (:mod:`~stewart_drake.organ_motion`), and the calibration's
-readers of a robot session (the encoder log of :mod:`~stewart_drake.calibration.join`, the
+It sits in the verification package, above the two features it joins: the organ-motion
+library and its report (:mod:`~stewart_drake.organ_motion`), and the calibration's readers of a
+robot session (the encoder log of :mod:`~stewart_drake.calibration.join`, the
 registration of :mod:`~stewart_drake.calibration.registration`).
 """
 
@@ -24,7 +24,7 @@ ENCODER_LOG_SUFFIX = "_encoders.csv"
 def add_verify_command(sub):
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers; returns its
     parser (its surrogate's options are added to it by
-    :func:`stewart_drake.live.pair_command.register`)."""
+    :func:`stewart_drake.verification.pair_command.register`)."""
     from ..organ_motion import SCENARIO
 
     vp = sub.add_parser(
@@ -211,9 +211,9 @@ def cmd_verify(args) -> int:
     from ..execution.trace_options import key_values
     from ..organ_motion.command import motion_scenario
     from ..organ_motion.fidelity import parse_tolerance
-    from ..organ_motion.verification import verify
-    from ..organ_motion.verification_report import write_verification
     from ..run.plan import robot_geometry
+    from .report import write_verification
+    from .verify import verify
 
     tolerance = parse_tolerance(args.tolerance)
     action_level = _action_level(args, tolerance)
@@ -296,8 +296,8 @@ def cmd_verify(args) -> int:
         if context is not None:
             from dataclasses import replace
 
-            from ..organ_motion.qa_record import write_record
-            from .verify_record_options import phantom_words
+            from .qa_record import write_record
+            from .record_options import phantom_words
 
             inputs = _record_inputs(args, m.path)
             identities = tuple(held[str(p)] for p in inputs if str(p) in held)
@@ -359,7 +359,7 @@ def _action_level(args, tolerance):
     """
     from ..base.errors import InvalidConfigError
     from ..organ_motion.fidelity import parse_tolerance
-    from ..organ_motion.verdict_levels import check_action_level
+    from .verdict_levels import check_action_level
 
     if args.action_level is None:
         return None
@@ -373,17 +373,17 @@ def _action_level(args, tolerance):
 
 
 def _record_context(args, tolerance):
-    """The :class:`~stewart_drake.organ_motion.qa_record.RecordContext` of ``--record`` and its
+    """The :class:`~stewart_drake.verification.qa_record.RecordContext` of ``--record`` and its
     options, checked before any work (reportlab importable), or None without ``--record``.
 
     Raises:
         InvalidConfigError: a record's option without ``--record``; a text too long
-            (:meth:`~stewart_drake.organ_motion.qa_record.RecordContext.check`).
+            (:meth:`~stewart_drake.verification.qa_record.RecordContext.check`).
         MissingExtraError: reportlab is not installed.
     """
     from ..base.errors import InvalidConfigError
-    from ..organ_motion.qa_record import RecordContext, _reportlab
-    from .verify_record_options import reference_words
+    from .qa_record import RecordContext, _reportlab
+    from .record_options import reference_words
 
     given = record_options(args)
     if not args.record:
@@ -410,12 +410,12 @@ def _record_context(args, tolerance):
 
 
 def _identities(args, context) -> dict:
-    """{path: :func:`~stewart_drake.organ_motion.qa_record.file_identity`} of every file a
+    """{path: :func:`~stewart_drake.verification.qa_record.file_identity`} of every file a
     record would name, taken before any is read ({} without ``--record``): the record holds
     the hash of the bytes judged, or refuses to be written."""
     if context is None:
         return {}
-    from ..organ_motion.qa_record import file_identity
+    from .qa_record import file_identity
 
     paths = [p for measured in args.measured for p in _record_inputs(args, measured)]
     return {str(p): file_identity(p) for p in paths}
@@ -448,7 +448,7 @@ def _earlier_verdict(path) -> str:
 
 def _save_registration(reference, measured, args) -> int:
     """Fit the tracker's frames to ``measured``, a run of the known ``reference``
-    (:func:`~stewart_drake.organ_motion.registration_motion.fit_registration`), and write them
+    (:func:`~stewart_drake.verification.registration_motion.fit_registration`), and write them
     to ``--save-registration``
     (:func:`~stewart_drake.calibration.registration_file.motion_frames_yaml`); 0.
 
@@ -463,7 +463,7 @@ def _save_registration(reference, measured, args) -> int:
     from ..base.errors import InvalidConfigError
     from ..base.fileio import atomic_write
     from ..calibration.registration_file import MAX_MARKER_SIGMA, motion_frames_yaml
-    from ..organ_motion.registration_motion import fit_registration
+    from .registration_motion import fit_registration
 
     print("verify: fitting the tracker's frames to the registration motion", file=sys.stderr)
     fit = fit_registration(
@@ -504,11 +504,11 @@ def _registration(path):
 
 
 def _measured(path: str, args, scenario, axis_map: dict):
-    """The :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion` of a measured file:
+    """The :class:`~stewart_drake.verification.measured_motion.MeasuredMotion` of a measured file:
     an encoder log (its name ends in :data:`ENCODER_LOG_SUFFIX`; read by the join's reader and
     turned into poses by forward kinematics of the scenario's robot) or a tracker's file (the
     trace readers, ``--measured-columns``, ``--measured-map``)."""
-    from ..organ_motion.measured_motion import encoder_motion, read_measured
+    from .measured_motion import encoder_motion, read_measured
 
     if not str(path).endswith(ENCODER_LOG_SUFFIX):
         return read_measured(path, args.measured_columns or "", axis_map)
@@ -526,7 +526,7 @@ def _summary(ver) -> str:
     import numpy as np
 
     from ..organ_motion.fidelity import AXES, format_angle, format_length, format_window
-    from ..organ_motion.verification import seconds
+    from .verify import seconds
 
     fid = ver.fidelity
     measured = np.asarray(ver.measured.measured, dtype=bool)
@@ -557,7 +557,7 @@ def _side_by_side(results: list) -> list:
     """The lines of a table of several measured views of one motion (the tracker's and the
     encoders'), one row each."""
     from ..base.tables import markdown_lines
-    from ..organ_motion.verification import seconds
+    from .verify import seconds
 
     def number(v: float, scale: float, unit: str) -> str:
         return "not measured" if math.isnan(v) else f"{v * scale:.3g} {unit}"

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 from ..base.tables import markdown_lines
-from ..organ_motion.measured_verdict import (
+from .measured_verdict import (
     seconds,
 )
 from .pair_judgement import DEFINITION, PairVerification
@@ -77,7 +77,7 @@ def write_pair(pair: PairVerification, out, tolerance, stems) -> list:
     import json
 
     from ..base.fileio import atomic_write
-    from ..organ_motion.verification_report import write_verification
+    from .report import write_verification
 
     out = Path(out)
     written = [*write_verification(pair.internal, out, tolerance, stems[0])]

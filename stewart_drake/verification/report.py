@@ -1,5 +1,5 @@
 """The report of a measured motion (``stewart-drake verify``): the page of a
-:class:`~.verification.Verification` (:func:`verification_markdown`: what was measured, what the
+:class:`~.verify.Verification` (:func:`verification_markdown`: what was measured, what the
 alignment removed, then the figures of a reproduction's report), written with the reproduction's
 figure and JSON (:func:`write_verification`: reproduce's keys, then ``latency_s``,
 ``clock_offset_s`` and what was removed).
@@ -9,10 +9,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .fidelity import AXES, format_angle, format_length
-from .fidelity_report import anchor_lines, fidelity_lines, startup_lines, write_report
+from ..organ_motion.fidelity import AXES, format_angle, format_length
+from ..organ_motion.fidelity_report import anchor_lines, fidelity_lines, startup_lines, write_report
 from .verdict_sensitivity import sensitivity_words
-from .verification import Verification, seconds
+from .verify import Verification, seconds
 
 
 def verification_markdown(ver: Verification, tolerance: tuple[float, float]) -> str:

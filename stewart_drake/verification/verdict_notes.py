@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fidelity import AXES
+from ..organ_motion.fidelity import AXES
 from .verdict_sensitivity import axis_amount, axis_tolerances
 
 #: The largest share of the measured samples a clock found (the clocks' relation not known) may
@@ -39,7 +39,7 @@ def uncompared_words(uncompared: dict) -> tuple[str, str]:
     "whole", "span_s", "longer_s"}, the recording's samples, those before the reference's start
     and after its end, their spans, s, whether the clock was known or searched among the shifts
     that compare the whole recording, the recording's span and by how much it outlasts the
-    reference, s (:attr:`~.verification.Verification.uncompared`)."""
+    reference, s (:attr:`~.verify.Verification.uncompared`)."""
     n = int(uncompared.get("samples", 0))
     before, after = int(uncompared.get("before", 0)), int(uncompared.get("after", 0))
     if not n or not before + after:

@@ -21,13 +21,11 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..base.errors import InvalidConfigError
-from .fidelity import AXES
+from ..organ_motion.fidelity import AXES
+from ..station.bus.emulator_config import EMULATED_BUS
 
 #: The kinds of a :class:`MeasuredMotion` read from the robot's own encoder log.
 ROBOT_KINDS = ("encoders", "carriage")
-#: How an encoder log's bus line begins when its run's servos were the emulator's
-#: (:attr:`MeasuredMotion.bus`).
-EMULATED_BUS = "emulated: "
 
 
 @dataclass(frozen=True)

@@ -9,12 +9,12 @@ from pathlib import Path
 
 from ..base.errors import InvalidConfigError
 from ..organ_motion.fidelity import AXES
-from ..organ_motion.measured_verdict import (
+from .command import ENCODER_LOG_SUFFIX, exit_status, record_options
+from .measured_verdict import (
     seconds,
 )
 from .pair_judgement import MAX_RELATIVE_LATENCY_S, verify_pair
 from .pair_report import write_pair
-from .verify_command import ENCODER_LOG_SUFFIX, exit_status, record_options
 
 #: ``--surrogate``'s word for the motion's external signal made by a correlation model
 #: (:func:`~.external_reference.model_reference`) instead of a recorded file.
@@ -23,9 +23,9 @@ MODEL = "model"
 
 def register(sub) -> None:
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers: the motion
-    judged alone (:func:`stewart_drake.live.verify_command.add_verify_command`) or, with these
+    judged alone (:func:`stewart_drake.verification.command.add_verify_command`) or, with these
     options (:func:`add_pair_arguments`), with its surrogate on one clock."""
-    from .verify_command import add_verify_command
+    from .command import add_verify_command
 
     add_pair_arguments(add_verify_command(sub))
 
@@ -101,7 +101,7 @@ def add_pair_arguments(vp) -> None:
 
 def is_encoder_log(path) -> bool:
     """Whether ``path`` names a robot run's encoder log (its name ends in
-    :data:`~stewart_drake.live.verify_command.ENCODER_LOG_SUFFIX`, as ``robot`` writes it): given
+    :data:`~stewart_drake.verification.command.ENCODER_LOG_SUFFIX`, as ``robot`` writes it): given
     to ``--measured`` it is read as ``verify`` alone reads it (the platform by forward
     kinematics), given to ``--measured-surrogate`` for its surrogate's carriage ``s``."""
     return str(path).endswith(ENCODER_LOG_SUFFIX)
@@ -130,7 +130,7 @@ def carriage_axis(reference) -> tuple[int, float]:
 
 
 def read_encoder_pair(path, surrogate_path, geometry, surrogate_reference) -> tuple:
-    """(the platform's, the carriage's) :class:`~stewart_drake.organ_motion.measured_motion.
+    """(the platform's, the carriage's) :class:`~stewart_drake.verification.measured_motion.
     MeasuredMotion` from robot runs' encoder logs (one log may be given for both): the platform
     by forward kinematics of ``geometry``, the carriage's ``s`` (as its servo's encoder read
     it, never its command ``s_cmd``) on the axis of ``surrogate_reference``
@@ -144,7 +144,7 @@ def read_encoder_pair(path, surrogate_path, geometry, surrogate_reference) -> tu
         ForwardKinematicsError: a reading forward kinematics cannot solve.
     """
     from ..calibration.join import read_encoder_log
-    from ..organ_motion.measured_motion import carriage_motion, encoder_motion
+    from .measured_motion import carriage_motion, encoder_motion
 
     axis, sign = carriage_axis(surrogate_reference)
     same = Path(path).resolve() == Path(surrogate_path).resolve()
@@ -267,10 +267,10 @@ def cmd_verify_pair(args) -> int:
     from ..execution.trace_options import key_values
     from ..organ_motion.command import motion_scenario
     from ..organ_motion.fidelity import parse_tolerance
-    from ..organ_motion.measured_motion import read_measured
     from ..references.traces import load_trace
     from ..run.plan import robot_geometry
     from .external_reference import model_reference
+    from .measured_motion import read_measured
 
     _check_pair_options(args)
     tolerance = parse_tolerance(args.tolerance)

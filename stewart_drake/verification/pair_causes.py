@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..organ_motion.fidelity import AXES, MOVING_P2P
-from ..organ_motion.measured_verdict import (
+from .measured_verdict import (
     AT_REST_SHARE,
     FOLLOWS_CORRELATION,
     PERIOD_SHARE,
@@ -21,7 +21,7 @@ from ..organ_motion.measured_verdict import (
 
 #: A measured axis whose sign reversed matches its reference this many times better (least mean
 #: squared distance, at its best shift) runs the wrong way (as
-#: :func:`~stewart_drake.organ_motion.measured_verdict.causes_of` says it).
+#: :func:`~stewart_drake.verification.measured_verdict.causes_of` says it).
 REVERSED_RATIO = 0.25
 #: Two measurements are swapped when each one's mean squared distance (each less its mean) to the
 #: other's reference is under this share of its distance to its own: 4 times nearer the other's.
@@ -43,13 +43,13 @@ TIE_SHARE = 0.05
 def why_not_following(reference, t, x, x_d, measured) -> str | None:
     """None when the measured motion follows its reference (so that its clock means something),
     else why not, in words: at rest (every measured axis along which the reference moves moved
-    less than :data:`~stewart_drake.organ_motion.measured_verdict.AT_REST_SHARE` of it, RMS, as
+    less than :data:`~stewart_drake.verification.measured_verdict.AT_REST_SHARE` of it, RMS, as
     ``verify``'s verdict says it: against the reference's own motion, not the tolerance),
     reversed
-    (an axis's correlation below -:data:`~stewart_drake.organ_motion.measured_verdict.
+    (an axis's correlation below -:data:`~stewart_drake.verification.measured_verdict.
     FOLLOWS_CORRELATION`, or its sign reversed matching :data:`REVERSED_RATIO` times better at
     another shift), another period, or not following (correlation within
-    +-:data:`~stewart_drake.organ_motion.measured_verdict.FOLLOWS_CORRELATION`). A scale or a
+    +-:data:`~stewart_drake.verification.measured_verdict.FOLLOWS_CORRELATION`). A scale or a
     shape error does not stop the clock meaning something: the fidelity's verdict judges those.
 
     Args:
@@ -105,7 +105,7 @@ def _axis_moving_most(measured, reference, t_ref) -> int | None:
     (by its RMS, a rotation weighted as verify's clock weighs it), or None; not the principal
     direction, which is a direction in space (:func:`~stewart_drake.base.signals.
     principal_direction`)."""
-    from ..organ_motion.alignment import axis_weights, reference_poses
+    from .alignment import axis_weights, reference_poses
 
     x_d = reference_poses(reference, t_ref)
     spread = np.std(x_d, axis=0) * axis_weights(measured)
@@ -124,7 +124,7 @@ def _best_match(
     (:func:`~stewart_drake.base.lag.shift_scores`, :func:`~stewart_drake.base.lag.refine_shift`)
     and scored there (:func:`~stewart_drake.base.lag.shift_score`)."""
     from ..base.lag import refine_shift, shift_score, shift_scores
-    from ..organ_motion.alignment import reference_poses
+    from .alignment import reference_poses
 
     y = np.asarray(v, dtype=float)[:, None]
     weights = np.ones(1)
@@ -158,11 +158,11 @@ def swapped_words(
 
     Args:
         pair_refs: (internal reference, surrogate reference). pair_measured: (internal
-            measured, surrogate measured) (:class:`~stewart_drake.organ_motion.measured_motion.
+            measured, surrogate measured) (:class:`~stewart_drake.verification.measured_motion.
             MeasuredMotion`). around_s: the internal's shift, s. relative_latency_s: as given,
             s.
     """
-    from ..organ_motion.verification import COARSE_STEP_S
+    from .verify import COARSE_STEP_S
 
     axes = []
     for ref, m in zip(pair_refs, pair_measured):

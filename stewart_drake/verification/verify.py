@@ -54,6 +54,7 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..base.lag import coarse_shift, refine_shift
+from ..organ_motion.fidelity import AXES, fidelity, startup_figures, time_lag
 from ..references.motion import Reference
 from .alignment import (
     Frames,
@@ -64,7 +65,6 @@ from .alignment import (
     reference_seen,
     registered_frames,
 )
-from .fidelity import AXES, fidelity, startup_figures, time_lag
 from .measured_motion import MeasuredMotion
 from .measured_span import (
     CYCLE_SLACK,

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
-from .fidelity import AXES
+from ..organ_motion.fidelity import AXES
 from .qa_record_pdf import FONT, record_pdf, undrawable
 from .verdict_levels import axis_levels as _axis_levels
 
@@ -317,7 +317,7 @@ def write_record(ver, out, tolerance, context: RecordContext, stem: str) -> tupl
     (:func:`results_data`), never over an earlier one (module docstring).
 
     Args:
-        ver: the :class:`~.verification.Verification`. out: the output folder. tolerance:
+        ver: the :class:`~.verify.Verification`. out: the output folder. tolerance:
             (m, rad). context: :class:`RecordContext`. stem: the report's stem.
     Returns:
         (pdf path, json path).

@@ -63,7 +63,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.signals import PERIOD_POWER_SHARE, centred, dominant_period
-from .fidelity import AXES, format_angle, format_length, format_window
+from ..organ_motion.fidelity import AXES, format_angle, format_length, format_window
 from .verdict_levels import action_words, axis_levels
 from .verdict_notes import (
     outlier_words,
@@ -476,7 +476,7 @@ def compared_words(ver) -> str:
 
 
 def judge(ver, tolerance: tuple[float, float], action_level=None) -> Judgement:
-    """The verdict on a :class:`~.verification.Verification` at ``tolerance`` (m, rad):
+    """The verdict on a :class:`~.verify.Verification` at ``tolerance`` (m, rad):
     PASS when every measured axis's RMS error over the window is within it and, with the clocks'
     relation known, |latency| within ``ver.max_latency_s``; ACTION instead when an axis is
     beyond ``action_level`` (m, rad; None: none); a FAIL's causes (module docstring)."""

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from .fidelity import AXES, GAMMA_CRITERIA, gamma_index
+from ..organ_motion.fidelity import AXES, GAMMA_CRITERIA, gamma_index
 
 #: The record's plots' resolution, dots per inch (print: 300 would double the PDF for no
 #: visible gain at the 180 mm width it is drawn).
@@ -130,14 +130,14 @@ def record_figure(ver, tolerance, action_level=None) -> bytes:
     """The record's plots as PNG bytes at :data:`DPI` (module docstring).
 
     Args:
-        ver: the :class:`~.verification.Verification`. tolerance, action_level: (m, rad);
+        ver: the :class:`~.verify.Verification`. tolerance, action_level: (m, rad);
             action_level may be None.
     Returns:
         the PNG's bytes.
     """
     import matplotlib
 
-    from .verification import judged_window
+    from .verify import judged_window
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

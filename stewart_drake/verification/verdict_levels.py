@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fidelity import AXES, format_angle, format_length
+from ..organ_motion.fidelity import AXES, format_angle, format_length
 from .verdict_sensitivity import axis_amount, axis_tolerances
 
 

@@ -17,7 +17,7 @@ import io
 import unicodedata
 from pathlib import Path
 
-from .fidelity import AXES
+from ..organ_motion.fidelity import AXES
 
 #: The record's typeface: matplotlib's own DejaVu Sans (Latin, Greek, Cyrillic and more; always
 #: installed with matplotlib), embedded, so that a name in those scripts is drawn where the
@@ -199,7 +199,7 @@ def axis_tables(data: dict) -> list:
 def _latency_and_gamma(data: dict) -> str:
     """The record's line on the latency (judged or not), the gamma pass rate and the cycles
     judged."""
-    from .verification import seconds
+    from .verify import seconds
 
     gamma = (
         "not computed (no translation measured)"
