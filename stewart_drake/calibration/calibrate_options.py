@@ -6,8 +6,9 @@ any work."""
 from __future__ import annotations
 
 import argparse
-import math
 
+from ..base.errors import InvalidConfigError
+from ..base.units import length_and_angle
 from ..execution.options import int_at_least, positive_float
 
 
@@ -170,28 +171,20 @@ def dwell_argument(text: str) -> float:
 
 
 def noise_argument(text: str) -> tuple[float, float]:
-    """``LENGTH,ANGLE`` with units (5um,20urad) as (m, rad)."""
-    from .files import ANGLE_UNITS, LENGTH_UNITS
-
-    parts = [p.strip() for p in text.split(",")]
-    out: list[float] = []
-    for part, table in zip(parts, (LENGTH_UNITS, ANGLE_UNITS)):
-        unit = part.lstrip("0123456789.+-eE")
-        number = part[: len(part) - len(unit)]
-        try:
-            value = float(number) * table[unit.strip()]
-        except (ValueError, KeyError):
-            value = math.nan
-        if not (math.isfinite(value) and 0 <= value <= MAX_NOISE[len(out)]):
-            break
-        out.append(value)
-    if len(parts) != 2 or len(out) != 2:
-        raise argparse.ArgumentTypeError(
-            f"expected a length and an angle with units, e.g. 5um,20urad (lengths in "
-            f"{', '.join(LENGTH_UNITS)}, at most 1 mm; angles in {', '.join(ANGLE_UNITS)}, at "
-            f"most 10 mrad), got {text!r}"
+    """An argparse type: the tracker's noise, ``LENGTH,ANGLE`` with units (5um,20urad), as
+    (m, rad), each at most :data:`MAX_NOISE` (0: a perfect tracker), read by the one reader of
+    a length with an angle (:func:`~stewart_drake.base.units.length_and_angle`)."""
+    try:
+        return length_and_angle(
+            text,
+            "--noise",
+            MAX_NOISE,
+            "at most 1 mm and 10 mrad (a tracker worse than that cannot calibrate the robot)",
+            example="5um,20urad",
+            zero=True,
         )
-    return out[0], out[1]
+    except InvalidConfigError as error:
+        raise argparse.ArgumentTypeError(f"expected a length and an angle: {error}") from None
 
 
 __all__ = [

@@ -35,14 +35,12 @@ import numpy as np
 
 from ..base.columns import interp_columns
 from ..base.errors import InvalidConfigError
-from ..base.lag import coarse_shift, refine_shift
+from ..base.lag import ROTATION_WEIGHT_M, coarse_shift, refine_shift
 
 #: The coarse step's sampling period, s: the path's moves last a second or more.
 COARSE_DT_S = 0.1
 #: Longest span of either clock the estimate samples, s (a day: 864,000 coarse samples).
 MAX_SPAN_S = 86400.0
-#: A rotation's weight against a translation, m per rad (a point 0.15 m from the axis).
-ROTATION_WEIGHT_M = 0.15
 #: Below this peak speed a record does not move, m/s (rotations weighted): a tracker's noise at
 #: rest is a few hundredths of it, the path's moves up to 30 times it.
 MIN_PEAK_SPEED = 1e-3

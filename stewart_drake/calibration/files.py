@@ -37,6 +37,7 @@ import numpy as np
 from ..base.columns import header_cell, read_csv_columns
 from ..base.errors import InvalidConfigError
 from ..base.fileio import atomic_write
+from ..base.units import ANGLE_UNITS, LENGTH_UNITS  # a column's (readings take "counts" too)
 from ..robot.geometry import StewartGeometry
 from ..robot.legs import PARAMETER_KINDS, LegParameters
 from .identify import MIN_POSES
@@ -48,9 +49,6 @@ MAX_MEASUREMENTS_BYTES = 200e6
 #: The columns a measurements file must have, with their SI units.
 READING_COLUMNS = tuple(f"q{i}" for i in range(6))
 POSE_COLUMNS = ("phi", "theta", "psi", "X", "Y", "Z")
-#: Units a column may carry: factor to SI (readings also take "counts").
-LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6}
-ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180}
 #: What a bad measurements file is told to become.
 MEASUREMENTS_REMEDY = (
     "write a first line naming every column with its unit, q0 [rad],...,q5 [rad],phi [rad],"

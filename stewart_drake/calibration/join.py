@@ -40,13 +40,14 @@ from scipy.spatial.transform import Rotation
 from ..base.columns import header_cell, read_csv_columns
 from ..base.errors import InvalidConfigError
 from ..base.fileio import atomic_write
+from ..base.units import ANGLE_UNITS, LENGTH_UNITS, UNITS
 from .clock import ClockOffset, estimate_clock_offset, poses_at
-from .files import ANGLE_UNITS, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
+from .files import POSE_COLUMNS, READING_COLUMNS
 
 #: Largest file the join reads, bytes (a day of a 100 Hz log).
 MAX_LOG_BYTES = 2e9
-#: Units of a time column: factor to s.
-TIME_UNITS = {"s": 1.0, "ms": 1e-3}
+#: Units of a time column: factor to s (the one table's, a log's two).
+TIME_UNITS = {unit: UNITS["s"][unit] for unit in ("s", "ms")}
 #: The columns of each file, with their kind ("time", "angle", "length").
 ENCODER_LOG_COLUMNS = {"time": "time", "t_run": "time", "t_path": "time"} | {
     n: "angle" for n in READING_COLUMNS

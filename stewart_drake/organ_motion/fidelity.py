@@ -13,11 +13,11 @@ and cardiac frequencies, and the error of every cycle; :func:`verdict` holds it 
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.units import length_and_angle
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -347,41 +347,19 @@ MAX_TOLERANCE = (1.0, math.pi)
 
 def parse_tolerance(text: str, option: str = "--tolerance") -> tuple[float, float]:
     """(m, rad) of a tolerance "0.1mm,0.1deg" (lengths m, cm, mm, um; angles rad, mrad, urad,
-    deg; either order). A unit is written as here or all in capitals ("0.1MM", as a device's
-    display has it); a mixed case is refused, "0.05Mm" being no millimetre.
+    deg; either order; a unit as written there or all in capitals), by the one reader of a
+    length with an angle (:func:`~stewart_drake.base.units.length_and_angle`).
 
     Raises:
         InvalidConfigError: naming ``option``: not one length and one angle, each a positive
             number with its unit, at most :data:`MAX_TOLERANCE`.
     """
-    from ..references.organ.library import UNITS
-
-    units = ", ".join([*UNITS["m"], *UNITS["rad"]])
-    found = {}
-    for part in str(text).split(","):
-        m = re.fullmatch(r"\s*((?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Z]+)\s*", part)
-        unit = m.group(2) if m else ""
-        unit = unit.lower() if unit.isupper() else unit
-        kind = next((k for k in ("m", "rad") if unit in UNITS[k]), None)
-        value = float(m.group(1)) if m else math.nan
-        if kind is None or kind in found or not 0 < value < math.inf:
-            why = f"the unit {unit!r} is not one of {units}" if m and kind is None else (
-                "each a finite positive number with its unit"
-            )  # fmt: skip
-            raise InvalidConfigError(
-                f"{option}: one length and one angle, {why}, e.g. 0.1mm,0.1deg; got {text!r}"
-            )
-        found[kind] = value * UNITS[kind][unit]
-    if len(found) != 2:
-        raise InvalidConfigError(
-            f"{option}: one length and one angle, e.g. 0.1mm,0.1deg; got {text!r}"
-        )
-    if found["m"] > MAX_TOLERANCE[0] or found["rad"] > MAX_TOLERANCE[1]:
-        raise InvalidConfigError(
-            f"{option}: at most 1 m and 180 deg (a tolerance past them judges nothing); "
-            f"got {text!r}"
-        )
-    return found["m"], found["rad"]
+    return length_and_angle(
+        text,
+        option,
+        MAX_TOLERANCE,
+        "at most 1 m and 180 deg (a tolerance past them judges nothing)",
+    )
 
 
 #: What a verdict compares when its caller does not say: a pose against its reference.

@@ -23,9 +23,9 @@ import numpy as np
 
 from ..base.checks import MAX_POSITION_M
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
+from ..base.units import UNITS
 from ..robot.kinematics import AXIS_NAMES
 from .organ.core import axis_index
-from .organ.library import UNITS
 from .vxp_files import VXP_AXIS, VXP_LAYOUT, VXP_OPENING, is_vxp, vxp_table
 
 #: Largest trace file read, bytes (several hours at 100 Hz).
@@ -33,8 +33,8 @@ MAX_TRACE_BYTES = 256e6
 #: Memory a trace takes per line while it is read, split, converted, smoothed and resampled,
 #: bytes: 2.8 kB measured on a 4-column trace sampled at 25 Hz (70 times its 40-byte lines).
 TRACE_BYTES_PER_LINE = 2.8e3
-#: Time units of a trace's time column: factor to s.
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
+#: Time units of a trace's time column: factor to s (the one table's).
+TIME_UNITS = UNITS["s"]
 #: The layouts :func:`load_trace` reads (``format``): "auto" (a header line, else the width
 #: decides: 7 columns are "phantom", 2 are "surrogate"), "csv" (a header line naming each
 #: column and its unit), "phantom", "surrogate", "vxp" (a Varian RPM export: "auto" knows it by

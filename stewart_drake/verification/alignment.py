@@ -43,13 +43,11 @@ from scipy.spatial.transform import Rotation
 
 from ..base.columns import uniform_columns
 from ..base.errors import InvalidConfigError
+from ..base.lag import ROTATION_WEIGHT_M
 from ..organ_motion.fidelity import AXES, format_window
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
 
-#: A rotation's weight against a translation in the clock's score, m per rad (a point 0.15 m
-#: from the axis).
-ROTATION_WEIGHT_M = 0.15
 #: The frames that a verification may take, and the words for each.
 FRAME_KINDS = ("axes", "base", "registration", "encoders")
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, fields
 
 from ...base.checks import as_number
 from ...base.errors import InvalidConfigError
+from ...base.units import UNITS  # a parameter value's units, by its field's suffix
 from ...robot.geometry import X_HOME, StewartGeometry
 from ..motion import Reference, ReferenceConfig
 from .breathing import BreathHold, Breathing, HysteresisBreathing, IrregularBreathing
@@ -46,14 +47,6 @@ LIBRARY = {
     "persistent_excursion": (PersistentExcursion, PersistentExcursion),
     "breath_hold": (BreathHold, BreathHold),
     "registration": (RegistrationMotion, RegistrationMotion),
-}
-
-#: Units a parameter value may carry, by the suffix of the field it sets: factor to SI.
-UNITS = {
-    "m": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6},
-    "rad": {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180},
-    "s": {"s": 1.0, "ms": 1e-3, "min": 60.0},
-    "bpm": {"bpm": 1.0, "/min": 1.0, "hz": 60.0},
 }
 
 
