@@ -40,6 +40,7 @@ from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError, StewartError
+from ..base.measures import rms_translation_rotation
 from ..robot.forward_kinematics import encoder_pose_noise
 from .contract import LearnerContext
 from .feedforward_basis import (
@@ -52,7 +53,6 @@ from .ilc import (
     MIN_Q_CUTOFF_HZ,
     add_record,
     cycle_error,
-    rms_pose_error,
     spend_rollback,
     steps_per_record,
 )
@@ -318,7 +318,7 @@ class FeedforwardTuningLearner(LeafSystem):
         """Whether the correction did worse than none over the records (the measured RMS ``e``
         above ``bound_ratio`` times the estimate ``d`` in translation or rotation); the status
         gets both."""
-        E, D = rms_pose_error(e), rms_pose_error(d)
+        E, D = rms_translation_rotation(e), rms_translation_rotation(d)
         status.E_trans_m, status.E_rot_rad = E
         status.D_trans_m, status.D_rot_rad = D
         r = self.bound_ratio if ratio is None else ratio
@@ -379,7 +379,7 @@ class FeedforwardTuningLearner(LeafSystem):
         # In sample, over the stretch's stationary records: worth more than the noise, and
         # better than none.
         c_r = self._per_record(phi, idx, rows, theta_new, trusted_new)
-        now, new, none = (rms_pose_error(v[keep]) for v in (e, d - c_r, d))
+        now, new, none = (rms_translation_rotation(v[keep]) for v in (e, d - c_r, d))
         worth = any(now[i] - new[i] > noise[i] for i in (0, 1))
         better = new[0] <= none[0] and new[1] <= none[1]
         if worth and better:  # out of sample: fitted on the first half, tried on the second
@@ -393,7 +393,10 @@ class FeedforwardTuningLearner(LeafSystem):
                 theta_1 = theta + status.gain * step_1 / self.scale[:, None]
                 trusted_1 = self._ranges(trusted, phi, idx, d, first)
                 c_1 = self._per_record(phi, idx, rows, theta_1, trusted_1)
-                held, held_none = rms_pose_error((d - c_1)[second]), rms_pose_error(d[second])
+                held, held_none = (
+                    rms_translation_rotation((d - c_1)[second]),
+                    rms_translation_rotation(d[second]),
+                )
                 better = held[0] <= held_none[0] and held[1] <= held_none[1]
         if not (worth and better):
             status.skipped += 1

@@ -37,6 +37,7 @@ from pydrake.systems.framework import LeafSystem
 from ..base.checks import as_array, as_number, check_int, check_multiple
 from ..base.columns import interp_columns
 from ..base.errors import InvalidConfigError
+from ..base.measures import rms_translation_rotation
 from ..robot import forward_kinematics, kinematics
 from .contract import LearnerContext
 
@@ -88,16 +89,6 @@ def cycle_error(geometry, theta, x_d, mode: str = "pose") -> np.ndarray:
         )
         e = np.where(converged[:, None], x - x_d, 0.0)
     return np.nan_to_num(e, nan=0.0, posinf=0.0, neginf=0.0)
-
-
-def rms_pose_error(e: np.ndarray) -> tuple[float, float]:
-    """(translational, rotational) RMS of pose errors (r, 6): sqrt(mean |e_xyz|^2) in m and
-    sqrt(mean |e_rpy|^2) in rad."""
-    e = np.asarray(e, dtype=float)
-    return (
-        float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
-        float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))),
-    )
 
 
 #: Lowest corner of the Q-filter, Hz: below the breathing fundamental (0.1-0.5 Hz) the filter
@@ -332,7 +323,7 @@ class IterativeLearningController(LeafSystem):
         best = memory[self._mem["best"]].reshape(self.M, 6)
         e = cycle_error(self.geometry, buffer[:, :6], buffer[:, 6:], self.error)
         e_pose = e if self.error == "pose" else _to_pose(self.geometry, buffer[:, 6:], e)
-        E = rms_pose_error(e_pose)
+        E = rms_translation_rotation(e_pose)
         status.E_trans_m, status.E_rot_rad = E
         if j == 0:
             status.E0_trans_m, status.E0_rot_rad = E

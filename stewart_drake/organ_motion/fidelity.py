@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.measures import peak_per_axis, rms_per_axis, rms_translation_rotation
 from ..base.units import length_and_angle
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
@@ -38,15 +39,6 @@ PHANTOM_ANCHOR = (
     ("theta", 0.06, 10.0),
     ("psi", 0.08, 10.0),
 )
-
-
-def rms_translation_rotation(e: np.ndarray) -> tuple[float, float]:
-    """(sqrt(mean |e_XYZ|^2) m, sqrt(mean |e_rpy|^2) rad) of pose errors (n, 6)."""
-    e = np.asarray(e)  # float32 or float64 as given; the sums in float64
-    return (
-        float(np.sqrt(np.mean(np.sum(np.square(e[:, 3:]), axis=1, dtype=float)))),
-        float(np.sqrt(np.mean(np.sum(np.square(e[:, :3]), axis=1, dtype=float)))),
-    )
 
 
 #: The gamma criteria a report gives (distance m, time s): the commissioning figure of motion
@@ -238,7 +230,7 @@ def _cycle_errors(t, x, x_d, cycle_starts) -> dict:
             ec = np.subtract(x[c], x_d[c], dtype=float)
             ct, cr = rms_translation_rotation(ec)
             cycles["starts"].append(float(a))
-            cycles["rms"].append(np.sqrt(np.mean(np.square(ec[:, :6]), axis=0)).tolist())
+            cycles["rms"].append(rms_per_axis(ec[:, :6]).tolist())
             cycles["rms_translation_m"].append(ct)
             cycles["rms_rotation_rad"].append(cr)
             cycles["peak_translation_m"].append(float(np.linalg.norm(ec[:, 3:], axis=1).max()))
@@ -279,8 +271,8 @@ def fidelity(
     e = np.subtract(xw, rw, dtype=np.float32)
     p2p = np.ptp(rw, axis=0).astype(float)
     moving = [k for k in range(6) if p2p[k] > MOVING_P2P[k]]
-    rms = np.sqrt(np.mean(np.square(e), axis=0, dtype=float))
-    peak = np.abs(e).max(axis=0).astype(float)
+    rms = rms_per_axis(e)
+    peak = peak_per_axis(e)
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.where(p2p > np.asarray(MOVING_P2P), rms / p2p, np.nan)
         peak_frac = np.where(p2p > np.asarray(MOVING_P2P), peak / p2p, np.nan)

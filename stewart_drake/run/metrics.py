@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.measures import peak_per_axis, rms_per_axis
 from ..robot.kinematics import AXIS_NAMES, AXIS_UNITS
 from ..robot.statics import holding_torques
 
@@ -56,8 +57,8 @@ def compute_metrics(
     rms, peak = [], []
     for k in range(6):
         e = np.subtract(result.x[i0:, k], result.x_d[i0:, k], dtype=float)
-        rms.append(float(np.sqrt(np.mean(e**2))))
-        peak.append(float(np.abs(e).max()))
+        rms.append(float(rms_per_axis(e)))
+        peak.append(float(peak_per_axis(e)))
     metrics = {
         "window_s": [float(start), float(t[-1])],
         "rms_error": rms,
