@@ -16,16 +16,14 @@ from harmonic_motion import Harmonics, along
 from scipy.spatial.transform import Rotation
 
 from stewart_drake.base.signals import dominant_period
-from stewart_drake.verification import measured_verdict as mv
+from stewart_drake.verification import causes as vc
 from stewart_drake.verification.alignment import Frames
+from stewart_drake.verification.causes import axis_figures, causes_of, reversed_match
 from stewart_drake.verification.measured_motion import MeasuredMotion
 from stewart_drake.verification.measured_verdict import (
     Judgement,
-    axis_figures,
-    causes_of,
     compared_words,
     judge,
-    reversed_match,
     seconds,
 )
 from stewart_drake.verification.verdict_sensitivity import (
@@ -70,8 +68,8 @@ def test_the_tolerance_of_each_axis_and_amounts_in_words():
     np.testing.assert_array_equal(axis_tolerances((1e-4, 2e-3)), [2e-3] * 3 + [1e-4] * 3)
     assert axis_amount(3, -0.0012) == "1.2 mm" and axis_amount(5, 3e-5) == "30 um"
     assert axis_amount(0, -math.radians(0.5)) == "0.5 deg" and axis_amount(2, 2e-4) == "200 urad"
-    assert mv._signed(4, 3e-4) == "+0.3 mm" and mv._signed(3, -1.25e-3) == "-1.25 mm"
-    assert mv._signed(1, -math.radians(0.2)) == "-0.2 deg"
+    assert vc._signed(4, 3e-4) == "+0.3 mm" and vc._signed(3, -1.25e-3) == "-1.25 mm"
+    assert vc._signed(1, -math.radians(0.2)) == "-0.2 deg"
 
 
 @pytest.mark.parametrize(
@@ -195,9 +193,9 @@ def test_no_dominant_period_where_no_peak_holds_its_share():
 
 def test_the_correlation_is_numpys_and_0_for_a_constant():
     a, b = X_D[:, 3], noisy(X_D[:, 3], 2e-3)
-    assert mv._correlation(a, b) == pytest.approx(np.corrcoef(a, b)[0, 1], rel=1e-12)
-    assert mv._correlation(a, -b) == pytest.approx(-np.corrcoef(a, b)[0, 1], rel=1e-12)
-    assert mv._correlation(a, np.full_like(a, 0.3)) == 0.0
+    assert vc._correlation(a, b) == pytest.approx(np.corrcoef(a, b)[0, 1], rel=1e-12)
+    assert vc._correlation(a, -b) == pytest.approx(-np.corrcoef(a, b)[0, 1], rel=1e-12)
+    assert vc._correlation(a, np.full_like(a, 0.3)) == 0.0
 
 
 # -- the causes ------------------------------------------------------------------------------------
@@ -605,7 +603,7 @@ def test_a_turn_is_named_from_1_deg_at_any_angle(angle, named):
     x = turned(X_D, angle, (0.0, 0.0, 1.0))
     # Beyond 60 deg a turn is named only when, turned back, the motion is within the tolerance
     # (here 20 um, a least-squares turn's own error on a motion along one line is a few um).
-    found, _ = mv._turned_axes(x, X_D, XYZ, (2e-5, 1.0))
+    found, _ = vc._turned_axes(x, X_D, XYZ, (2e-5, 1.0))
     assert (found is not None) == named
     if named:
         assert float(found.split("turned ")[1].split(" deg")[0]) == pytest.approx(angle, rel=2e-3)
@@ -617,16 +615,16 @@ def test_a_turn_is_named_only_when_turning_back_explains_the_motion():
     # Turned 5 deg and noisy: turned back, the motion is not within a quarter of its distance,
     # but it is within the tolerance of each axis, or not.
     x = noisy(turned(X_D, 5.0, (0.0, 0.0, 1.0)), 2e-4, seed=2)
-    assert mv._turned_axes(x, X_D, XYZ, (3e-4, 1.0))[0] is not None
-    assert mv._turned_axes(x, X_D, XYZ, (1.5e-4, 1.0))[0] is None
-    assert mv._turned_axes(x, X_D, ALONG_X, (3e-4, 1.0))[0] is None  # one translation measured
+    assert vc._turned_axes(x, X_D, XYZ, (3e-4, 1.0))[0] is not None
+    assert vc._turned_axes(x, X_D, XYZ, (1.5e-4, 1.0))[0] is None
+    assert vc._turned_axes(x, X_D, ALONG_X, (3e-4, 1.0))[0] is None  # one translation measured
     # Within the tolerance on every axis, not on their mean: X beyond it, Y and Z well within.
     x = turned(X_D, 5.0, (0.0, 0.0, 1.0))
     x[:, 3] = noisy(x[:, 3], 3e-4, seed=5)
-    assert mv._turned_axes(x, X_D, XYZ, (2.5e-4, 1.0))[0] is None
-    assert mv._turned_axes(x, X_D, XYZ, (3.5e-4, 1.0))[0] is not None
+    assert vc._turned_axes(x, X_D, XYZ, (2.5e-4, 1.0))[0] is None
+    assert vc._turned_axes(x, X_D, XYZ, (3.5e-4, 1.0))[0] is not None
     two = np.array([False] * 3 + [True, True, False])
-    assert mv._turned_axes(x, X_D, two, (3e-4, 1.0))[0] is not None
+    assert vc._turned_axes(x, X_D, two, (3e-4, 1.0))[0] is not None
 
 
 # -- the sensitivity -------------------------------------------------------------------------------

@@ -96,6 +96,7 @@ MODULES = {
         "tests/test_predictors.py",
     ),
     "stewart_drake/verification/measured_verdict.py": ("tests/test_measured_verdict.py",),
+    "stewart_drake/verification/causes.py": ("tests/test_measured_verdict.py",),
     "stewart_drake/verification/verdict_notes.py": (
         "tests/test_verdict_notes.py",
         "tests/test_verification.py",

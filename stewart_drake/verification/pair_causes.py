@@ -10,18 +10,18 @@ from pathlib import Path
 import numpy as np
 
 from ..organ_motion.fidelity import AXES, MOVING_P2P
-from .measured_verdict import (
+from .causes import (
     AT_REST_SHARE,
     FOLLOWS_CORRELATION,
     PERIOD_SHARE,
     axis_figures,
     reversed_match,
-    seconds,
 )
+from .verdict_notes import seconds
 
 #: A measured axis whose sign reversed matches its reference this many times better (least mean
 #: squared distance, at its best shift) runs the wrong way (as
-#: :func:`~stewart_drake.verification.measured_verdict.causes_of` says it).
+#: :func:`~stewart_drake.verification.causes.causes_of` says it).
 REVERSED_RATIO = 0.25
 #: Two measurements are swapped when each one's mean squared distance (each less its mean) to the
 #: other's reference is under this share of its distance to its own: 4 times nearer the other's.
@@ -43,13 +43,13 @@ TIE_SHARE = 0.05
 def why_not_following(reference, t, x, x_d, measured) -> str | None:
     """None when the measured motion follows its reference (so that its clock means something),
     else why not, in words: at rest (every measured axis along which the reference moves moved
-    less than :data:`~stewart_drake.verification.measured_verdict.AT_REST_SHARE` of it, RMS, as
+    less than :data:`~stewart_drake.verification.causes.AT_REST_SHARE` of it, RMS, as
     ``verify``'s verdict says it: against the reference's own motion, not the tolerance),
     reversed
     (an axis's correlation below -:data:`~stewart_drake.verification.measured_verdict.
     FOLLOWS_CORRELATION`, or its sign reversed matching :data:`REVERSED_RATIO` times better at
     another shift), another period, or not following (correlation within
-    +-:data:`~stewart_drake.verification.measured_verdict.FOLLOWS_CORRELATION`). A scale or a
+    +-:data:`~stewart_drake.verification.causes.FOLLOWS_CORRELATION`). A scale or a
     shape error does not stop the clock meaning something: the fidelity's verdict judges those.
 
     Args:
