@@ -355,39 +355,19 @@ def verify(
     if clock_offset_s is not None:
         check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
-    if measured.from_the_robot:
-        clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
-        # The carriage's s is about the stage's mid-travel: its offset removed, as a camera's.
-        encoders = measured.kind == "encoders"
-        frames = Frames("encoders") if encoders else Frames("axes", note=CARRIAGE)
-    else:
-        clock = "given (--clock-offset)" if clock_offset_s is not None else "not known"
-        frames = Frames(frame) if registration is None else _registered(registration, measured)
-    if frames.how == "registration":
-        if measured.rotations_measured:
-            y = np.asarray(registration.base_poses(y), dtype=float)
-        else:
-            y[:, 3:] = y[:, 3:] @ frames.R_BT.T + frames.p_BT
+    clock_offset_s, clock, frames, y = _clock_and_frames(
+        measured, y, frame, registration, clock_offset_s
+    )
     resampled, paused = _samples(t, max_gap_s, pauses)
     check_length(reference, t)
-    step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
-    (lo, hi), whole = search_range(reference, t, clock_offset_s, max_latency_s, _whole)
-    weights = axis_weights(seen)
-
-    def shown(times):
-        return reference_seen(frames, reference, times)
-
     # The search runs on the file's times less its first, so that a clock counting from 1970
     # (1.7e9 s) keeps its digits: D, the reference's time at the file's first sample, is the
     # shift d plus that first time.
     t_first = float(t[0])
     t_rel = t - t_first
-    # The clock is searched with each axis's constant offset removed, whatever the frames: an
-    # offset (a phantom set down off its place) would otherwise pull the shift towards where
-    # the reference's mean over the window comes nearest it. The offset is judged on its own.
-    D0 = coarse_shift(t_rel, y, weights, shown, (lo + t_first, hi + t_first), step, True)
-    use = overlap(reference, t_rel + D0, step)
-    D = refine_shift(t_rel[use], y[use], weights, shown, D0, step, True)
+    (lo, hi), whole = search_range(reference, t, clock_offset_s, max_latency_s, _whole)
+    step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
+    D = _searched_shift(reference, t_rel, y, seen, frames, (lo + t_first, hi + t_first), step)
     offsets = frames.removes_offsets
     d = D - t_first
     keep = overlap(reference, t_rel + D, 0.0)
@@ -441,6 +421,45 @@ def verify(
     if _whole and clock == "not known" and ver.judgement.verdict == "FAIL":
         return _best_part(ver, reference, measured, options)
     return ver
+
+
+def _clock_and_frames(measured, y, frame: str, registration, clock_offset_s):
+    """(the clock offset, s or None, the clock's words, the :class:`~.alignment.Frames`, the
+    measured poses (n, 6) in them) of a measured motion: the encoder log's own clock and
+    frames, else the clock given or not known and the frames asked for (a registration's
+    mapping the tracker's poses into the base frame)."""
+    if measured.from_the_robot:
+        clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
+        # The carriage's s is about the stage's mid-travel: its offset removed, as a camera's.
+        encoders = measured.kind == "encoders"
+        frames = Frames("encoders") if encoders else Frames("axes", note=CARRIAGE)
+    else:
+        clock = "given (--clock-offset)" if clock_offset_s is not None else "not known"
+        frames = Frames(frame) if registration is None else _registered(registration, measured)
+    if frames.how == "registration":
+        if measured.rotations_measured:
+            y = np.asarray(registration.base_poses(y), dtype=float)
+        else:
+            y[:, 3:] = y[:, 3:] @ frames.R_BT.T + frames.p_BT
+    return clock_offset_s, clock, frames, y
+
+
+def _searched_shift(reference, t_rel, y, seen, frames, bounds, step: float) -> float:
+    """D, s: the reference's time at the measured file's first sample, searched within
+    ``bounds`` (s) on the file's times less its first (``t_rel``): coarse at ``step`` (s, the
+    file's own sample period or :data:`COARSE_STEP_S`), then refined where
+    the shifted file overlaps the reference. The clock is searched with each axis's constant
+    offset removed, whatever the frames: an offset (a phantom set down off its place) would
+    otherwise pull the shift towards where the reference's mean over the window comes nearest
+    it. The offset is judged on its own."""
+    weights = axis_weights(seen)
+
+    def shown(times):
+        return reference_seen(frames, reference, times)
+
+    D0 = coarse_shift(t_rel, y, weights, shown, bounds, step, True)
+    use = overlap(reference, t_rel + D0, step)
+    return refine_shift(t_rel[use], y[use], weights, shown, D0, step, True)
 
 
 def _without_outliers(ver, reference, measured, clock_offset_s, options, whole):
