@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.measures import rms_per_axis
 from ..base.tables import markdown_lines
 from ..robot import forward_kinematics, kinematics
 from ..robot.geometry import X_HOME
@@ -270,7 +271,7 @@ def axis_rms(e) -> np.ndarray:
     """Per-axis RMS of a pose error ``e`` (n, 6) [rad, m] over its rows: (6,); NaN for no row
     (a run that measured nothing has no error to give)."""
     e = np.asarray(e, dtype=float)
-    return np.sqrt(np.mean(np.square(e), axis=0)) if len(e) else np.full(e.shape[-1], np.nan)
+    return rms_per_axis(e) if len(e) else np.full(e.shape[-1], np.nan)
 
 
 def source_share(total, without) -> np.ndarray:

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..base.measures import rms_per_axis
 from ..references.prediction import PredictorSettings
 from ..references.stream import DEFAULT_STREAM_RATE_HZ, LOOP_LAG_S, SWITCH_S, follow, stream_of
 
@@ -405,7 +406,7 @@ def after_warm_up(judged, prediction_from_s: float | None) -> dict | None:
         return None
     e = np.subtract(r.x[inside, :6], r.x_d[inside, :6], dtype=float)
     window = [float(t[inside][0]), float(t[inside][-1])]
-    return {"window_s": window, "rms": np.sqrt(np.mean(e**2, axis=0)).tolist()}
+    return {"window_s": window, "rms": rms_per_axis(e).tolist()}
 
 
 def prediction_start(followed) -> float | None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..base.measures import rms_per_axis
 from ..organ_motion.fidelity import AXES
 from .verdict_sensitivity import axis_amount, axis_tolerances
 
@@ -144,7 +145,7 @@ def outliers(x: np.ndarray, x_d: np.ndarray, measured, tolerance, removes_offset
         "frames": int(flagged.sum()),
         "samples": int(len(e)),
         "largest": np.where(beyond, centred, 0.0).max(axis=0, initial=0.0),
-        "rest_rms": np.where(measured, np.sqrt(np.mean(rest**2, axis=0)), np.nan),
+        "rest_rms": np.where(measured, rms_per_axis(rest), np.nan),
         "mask": flagged,
     }
 

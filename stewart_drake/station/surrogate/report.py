@@ -8,6 +8,7 @@ import re
 import numpy as np
 
 from ...base.errors import InvalidConfigError
+from ...base.measures import rms_per_axis
 from ...base.signals import principal_displacement
 from .correlation import CorrelationModel
 from .sync_figures import pair_figures, relative_latency
@@ -85,7 +86,7 @@ def pair_report(t, x, x_d, p, p_asked, window: tuple, split_s: float | None = No
     }
     return {
         "window_s": (float(tk[0]), float(tk[-1])),
-        "internal_rms_m": np.sqrt(np.mean((xi - xa) ** 2, axis=0)).tolist(),
+        "internal_rms_m": rms_per_axis(xi - xa).tolist(),
         "external_rms_m": float(np.sqrt(np.mean((pk - pa) ** 2))),
         "direction": u.tolist(),
         "latency": relative_latency(tk, xa, xi, pa, pk),
