@@ -58,8 +58,8 @@ def length_and_angle(
         unit = unit.lower() if unit.isupper() else unit
         kind = next((k for k in ("m", "rad") if unit in UNITS[k]), None)
         value = float(m.group(1)) if m else math.nan
-        small_enough = value > 0 or (zero and value == 0)
-        if kind is None or kind in found or not (small_enough and value < math.inf):
+        allowed = value > 0 or (zero and value == 0)
+        if kind is None or kind in found or not (allowed and value < math.inf):
             why = f"the unit {unit!r} is not one of {units}" if m and kind is None else (
                 f"each a finite {sign} number with its unit"
             )  # fmt: skip
