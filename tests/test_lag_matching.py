@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.live.session_surrogate import judged_relative_latency as relative_latency
 from stewart_drake.station.bus.servos import SurrogateServoConfig
 from stewart_drake.station.surrogate.bus_servo import SurrogateDrive
-from stewart_drake.station.surrogate.encoder_relative_latency import relative_latency
 from stewart_drake.station.surrogate.lag_matching import (
     MAX_DELAY_S,
     MAX_RATE,

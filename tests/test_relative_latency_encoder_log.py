@@ -350,22 +350,21 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
     """``robot breathing --surrogate RESP`` on the bus emulator (the robot's plant and the
     surrogate's lead-screw stage behind one bus, on the commanded clock), then ``verify`` with its
     encoder log for both: the relative latency agrees with the one the run measured from the
-    same encoders by its own method (``encoder_relative_latency``: each lag a delay of the
+    same encoders (``live.session_surrogate.judged_relative_latency``: each lag a delay of the
     reading behind its command) to 5 ms (16.0 ms against 17.1 ms when written).
 
     And the robot's session and the simulated Diagram pick one direction and one relative
     latency: the session's lag matching and its verdict judge the platform along the direction
     the Diagram's surrogate signal carries (the principal direction of the breathing's
     translations, X: its superior-inferior axis), and the Diagram's pair report
-    (``sync_figures.relative_latency``) on the session's own samples gives each lag and their
-    difference within 0.5 ms."""
+    (``base.pair_figures.relative_latency``, the same definition) on the session's own samples
+    gives each lag and their difference within 0.5 ms."""
+    from stewart_drake.base.pair_figures import relative_latency
     from stewart_drake.live import session_surrogate
-    from stewart_drake.station.surrogate import encoder_relative_latency
     from stewart_drake.station.surrogate.axis import SurrogateAxis
-    from stewart_drake.station.surrogate.sync_figures import relative_latency
 
     judged, matched = [], []
-    measure, lag_match = encoder_relative_latency.relative_latency, session_surrogate.lag_match
+    measure, lag_match = session_surrogate.judged_relative_latency, session_surrogate.lag_match
 
     def measure_and_keep(*args, **kwargs):
         judged.append((args, kwargs))
@@ -375,7 +374,7 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
         matched.append(lag_match(*args))
         return matched[-1]
 
-    monkeypatch.setattr(encoder_relative_latency, "relative_latency", measure_and_keep)
+    monkeypatch.setattr(session_surrogate, "judged_relative_latency", measure_and_keep)
     monkeypatch.setattr(session_surrogate, "lag_match", lag_match_and_keep)
     from conftest import LOADED_MACHINE_BUS, bus_emulator, extra_missing
 
@@ -432,12 +431,12 @@ def test_the_log_of_a_run_on_the_emulated_robot_gives_the_runs_own_relative_late
     (t, x_m, x_c, s_m), kw = judged[0][0][:4], judged[0][1]
     w = t >= kw["t_from"]
     diagram = relative_latency(t[w], x_c[w], x_m[w], kw["s_reference"][w], s_m[w])
-    np.testing.assert_allclose(diagram["direction"], diagram_u, atol=1e-6)
-    assert abs(diagram["relative_latency_s"] - run.relative_latency.relative_s) < 5e-4, (
+    np.testing.assert_allclose(diagram.direction, diagram_u, atol=1e-6)
+    assert abs(diagram.relative_s - run.relative_latency.relative_s) < 5e-4, (
         diagram,
         run.relative_latency.line(),
     )
     # Each lag alike, and lags to agree on (the platform's about 17 ms), not zeros.
-    assert abs(diagram["lag_internal_s"] - run.relative_latency.platform_lag_s) < 5e-4
-    assert abs(diagram["lag_external_s"] - run.relative_latency.surrogate_lag_s) < 5e-4
+    assert abs(diagram.internal_lag_s - run.relative_latency.platform_lag_s) < 5e-4
+    assert abs(diagram.external_lag_s - run.relative_latency.surrogate_lag_s) < 5e-4
     assert run.relative_latency.platform_lag_s > 5e-3

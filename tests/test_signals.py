@@ -99,11 +99,11 @@ def test_a_still_motion_has_z_and_wrong_samples_are_refused():
 def test_the_robots_verdict_and_the_diagrams_report_measure_one_lag_along_one_direction():
     """A platform moving along the diagonal (0.6, 0, 0.8) 20 ms behind its command, 0.3 mm off
     it on Z (a calibration offset), and a carriage 8 ms behind its own: the robot's verdict
-    (``encoder_relative_latency``) and the Diagram's pair report (``sync_figures``) both judge
+    (``live.session_surrogate``) and the Diagram's pair report (``base.pair_figures``) both judge
     the diagonal, find 20 and 8 ms to 0.1 ms, and agree on the relative latency, +12 ms, to
     0.5 ms; Z, the coordinate that moves most, is not the direction judged."""
-    from stewart_drake.station.surrogate.encoder_relative_latency import relative_latency as robots
-    from stewart_drake.station.surrogate.sync_figures import relative_latency as diagrams
+    from stewart_drake.base.pair_figures import relative_latency as diagrams
+    from stewart_drake.live.session_surrogate import judged_relative_latency as robots
 
     t = np.arange(0.0, 12.0, 0.01)
     u = np.array([0.6, 0.0, 0.8])
@@ -118,12 +118,12 @@ def test_the_robots_verdict_and_the_diagrams_report_measure_one_lag_along_one_di
     robot = robots(t, x_m, x_c, s_m, s_c, tolerance_s=0.01)
     diagram = diagrams(t, x_c, x_m, s_c, s_m)
     np.testing.assert_allclose(robot.platform_direction, u, atol=1e-9)
-    np.testing.assert_allclose(diagram["direction"], u, atol=1e-9)
+    np.testing.assert_allclose(diagram.direction, u, atol=1e-9)
     assert robot.platform_axis == "(0.6, 0, 0.8)"
     assert robot.platform_lag_s == pytest.approx(0.020, abs=1e-4)
     assert robot.surrogate_lag_s == pytest.approx(0.008, abs=1e-4)
     assert robot.relative_s == pytest.approx(0.012, abs=2e-4)
-    assert diagram["relative_latency_s"] == pytest.approx(robot.relative_s, abs=5e-4)
+    assert diagram.relative_s == pytest.approx(robot.relative_s, abs=5e-4)
 
 
 @pytest.mark.parametrize("vertex", [-0.45, -0.2, 0.0, 0.13, 0.4])

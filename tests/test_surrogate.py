@@ -7,11 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from stewart_drake.base import pair_figures as sf
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli import main as cli
-from stewart_drake.station.surrogate import sync_figures as sf
+from stewart_drake.execution.trace_options import correlation_model
+from stewart_drake.organ_motion.surrogate_pair import pair_report
 from stewart_drake.station.surrogate.correlation import CorrelationModel
-from stewart_drake.station.surrogate.report import correlation_model, pair_report
 from stewart_drake.station.surrogate.stage import SurrogateStage
 
 H = 1e-3
@@ -63,7 +64,7 @@ def test_relative_latency_is_internal_delay_less_external_delay():
     c = 5e-3 * np.sin(W * T)
     late = np.interp(T - 0.02, T, c)
     rl = sf.relative_latency(T, c, np.interp(T - 0.005, T, c), 0.8 * c, 0.8 * late)
-    assert rl["relative_latency_s"] == pytest.approx(-0.015, abs=2e-4)  # the surrogate late
+    assert rl.relative_s == pytest.approx(-0.015, abs=2e-4)  # the surrogate late
 
 
 def _pair(external_measured=None, lead=0.4):

@@ -6,8 +6,8 @@ reversed-axis test (:mod:`stewart_drake.verification.measured_verdict`), the pai
 relative latency on measurements (``verify --surrogate``,
 :mod:`stewart_drake.verification.pair_judgement`) and its swap test
 (:mod:`stewart_drake.verification.pair_causes`), a reproduced pair's lags and its external's
-lead (:mod:`stewart_drake.station.surrogate.sync_figures`), the robot's lags from its encoders
-(:mod:`stewart_drake.station.surrogate.encoder_relative_latency`), ``reproduce``'s lag of the
+lead and the robot's lags from its encoders (:mod:`stewart_drake.base.pair_figures`, the one
+relative latency), ``reproduce``'s lag of the
 achieved motion (:func:`stewart_drake.organ_motion.fidelity.time_lag`) and a tracker's clock
 against the robot computer's (:mod:`stewart_drake.calibration.clock`).
 

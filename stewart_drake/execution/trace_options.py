@@ -155,10 +155,72 @@ def key_values(items, option: str) -> dict:
     return out
 
 
+#: ``--surrogate-param`` keys: the
+#: :class:`~stewart_drake.station.surrogate.correlation.CorrelationModel` field each sets.
+MODEL_KEYS = {
+    "ratio": "amplitude_ratio",
+    "lead": "lead_s",
+    "drift": "drift_m_per_s",
+    "change_at": "change_at_s",
+    "lead_after": "lead_after_s",
+    "ratio_after": "ratio_after",
+    "blend": "change_blend_s",
+}
+
+
+def _model_units() -> dict[str, float]:
+    """The units a ``--surrogate-param`` value may carry, factor to SI: none, a time, or a
+    length over a time (the one unit table, :data:`stewart_drake.base.units.UNITS`)."""
+    from ..base.units import LENGTH_UNITS, UNITS
+
+    times = UNITS["s"]
+    rates = {f"{ln}/{tn}": lf / tf for ln, lf in LENGTH_UNITS.items() for tn, tf in times.items()}
+    return {"": 1.0, **times, **rates}
+
+
+def correlation_model(items):
+    """The :class:`~stewart_drake.station.surrogate.correlation.CorrelationModel` of
+    ``KEY=VALUE`` words (:data:`MODEL_KEYS`; each value a number with no unit, a time (``s``,
+    ``ms``, ``min``) or a speed (a length over a time: ``mm/s``, ``mm/min``, ``m/s``...)),
+    validated.
+
+    Raises:
+        InvalidConfigError: an unknown key (the keys listed), a value that is not a number with
+            one of those units, a model refused by its validation.
+    """
+    import re
+
+    from ..base.errors import InvalidConfigError
+    from ..station.surrogate.correlation import CorrelationModel
+
+    units = _model_units()
+    fields = {}
+    for item in items or ():
+        key, _, value = item.partition("=")
+        if key not in MODEL_KEYS:
+            raise InvalidConfigError(
+                f"--surrogate-param {item!r}: the keys are {', '.join(MODEL_KEYS)}"
+            )
+        match = re.fullmatch(r"\s*([-+0-9.eE]+)\s*([a-z/]*)\s*", value)
+        if match is None or match.group(2) not in units:
+            raise InvalidConfigError(
+                f"--surrogate-param {item!r}: a number with no unit, a time (s, ms, min) or a "
+                "speed (a length over a time: mm/s, mm/min, m/s)"
+            )
+        try:
+            number = float(match.group(1))
+        except ValueError:
+            raise InvalidConfigError(f"--surrogate-param {item!r}: not a number") from None
+        fields[MODEL_KEYS[key]] = number * units[match.group(2)]
+    return CorrelationModel(**fields).validate()
+
+
 __all__ = [
     "add_trace_arguments",
     "TRACE_ONLY",
     "trace_options_given",
     "trace_reference",
     "key_values",
+    "MODEL_KEYS",
+    "correlation_model",
 ]

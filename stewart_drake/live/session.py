@@ -49,7 +49,7 @@ from .session_surrogate import check_surrogate_trace, command_surrogate, relativ
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
 
 if TYPE_CHECKING:
-    from ..station.surrogate.encoder_relative_latency import RelativeLatency
+    from .session_surrogate import RelativeLatency
 
 
 @dataclasses.dataclass
@@ -73,7 +73,7 @@ class RobotRun:
             tracking from the measured pose, torques), when its logs were read.
         exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
         relative_latency: with a surrogate's trace, the
-            :class:`~.encoder_relative_latency.RelativeLatency` measured from the encoders
+            :class:`~.session_surrogate.RelativeLatency` measured from the encoders
             (None: no surrogate, or no logs); its ``line()`` is the verdict.
         relative_latency_line: the verdict's line, or why it was not measured (None: no
             surrogate's trace).
@@ -311,7 +311,7 @@ def _keep_logs(
     readings beside it (their times on the computer's clock, s since the epoch, and on the
     reference's clock of ``homed``; with a surrogate on the bus, its carriage's position read
     and commanded); with ``judge`` the relative latency of the platform and the surrogate
-    (:func:`~.encoder_relative_latency.relative_latency`). A failure to write them is told in
+    (:func:`~.session_surrogate.judged_relative_latency`). A failure to write them is told in
     ``ended.reason``, never raised."""
     from ..calibration.join import encoder_log_path, write_encoder_log
     from ..run.result import finish_result, read_run, save_result

@@ -1,14 +1,55 @@
 """The surrogate's part of a session on the robot (:func:`~.session.run_on_robot` with a
 surrogate's trace): the trace checked against the stage before the port is opened, the
 carriage's command on the run's clock (with the platform's lag matched, when the bus asks for
-it), and the pair's relative latency from the encoders at the end.
+it), and the pair's relative latency from the encoders at the end, judged.
+
+**The relative latency from the encoders.**
+Each axis is judged against its own reference on the run's one clock (the Diagram's time t of
+each control period, logged with the period's reading):
+
+- the **lag** L of an axis is the shift delta that minimises the RMS difference between what
+  its encoders measured, y(t_k), and its reference shifted later by delta, c(t_k - delta), less
+  their mean difference (a constant offset, as the Diagram's pair report removes it) (linearly
+  interpolated between its logged samples; delta searched in [-``max_lag_s``,
+  +``max_lag_s``], every shift on the samples' step at once by FFT, then refined by a bounded
+  scalar minimisation to 1 us: :func:`stewart_drake.base.lag.signal_lag`, IntERAct's RMSE
+  alignment, Kaczynska et al. 2026, in continuous shifts). L > 0: the axis moves after its
+  reference.
+- the platform's y and c: its pose from the crank encoders (forward kinematics) and the
+  reference's pose, along the **principal direction** of the reference's translations over the
+  judged window (:func:`~stewart_drake.base.signals.principal_direction`, as the Diagram's pair
+  report and lag matching take it), m; the surrogate's: the carriage's position from its servo's
+  encoder (``s``) and its reference on the run's clock (``s_ref``: its trace where the
+  platform's reference is, before any delay lag matching gave its command), m. So a delay given
+  to the carriage's command to match the platform's lag
+  (:mod:`~stewart_drake.station.surrogate.lag_matching`) is part of the surrogate's lag, and judged,
+  not assumed; the servo's own lag behind the command it was given (``s_cmd``) is reported
+  beside it.
+- the **relative latency** is L_platform - L_surrogate, s, the one relative latency
+  (:func:`~stewart_drake.base.pair_figures.relative_latency`, the Diagram's pair report's too):
+  **positive when the platform (the
+  internal target) follows its command later than the surrogate follows its own**, the sign
+  ``verify --surrogate`` and IntERAct's analysis use (``shift6D - shift1D``,
+  RMSEAlignMethod.m); its verdict holds it to ``tolerance_s`` (one control period by default: the
+  acceptance of the emulated pair).
+
+The window judged: the periods from the end of the homing lead-in on (``t >= t_from``), less
+``max_lag_s`` at each end so that every shift compares the same samples. An axis whose command
+moves less than 20 encoder counts' worth over the window has no lag to measure (NaN, said).
 """
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+from typing import cast
+
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.lag import inner_mask, signal_lag
+from ..base.pair_figures import relative_latency
+from ..base.signals import direction_words
 
 
 def check_surrogate_trace(scenario, surrogate) -> None:
@@ -82,10 +123,8 @@ def lag_match(homed, period_s: float, t_end: float):
 def relative_latency_of_run(driver, homed, t, carriage):
     """The relative latency of the run's periods after the homing lead-in, from the
     encoders, held to one control period."""
-    from ..station.surrogate.encoder_relative_latency import relative_latency
-
     x_c = homed.evaluate(t)[0]
-    return relative_latency(
+    return judged_relative_latency(
         t,
         driver.pose_readings(),
         x_c,
@@ -101,4 +140,211 @@ def relative_latency_of_run(driver, homed, t, carriage):
     )
 
 
-__all__ = ["check_surrogate_trace", "command_surrogate", "lag_match", "relative_latency_of_run"]
+#: The longest lag searched, s.
+MAX_LAG_S = 0.5
+#: Fewest samples a window must hold.
+MIN_SAMPLES = 20
+
+
+def axis_lag(t, measured, commanded, max_lag_s: float = MAX_LAG_S, still_below: float = 0.0):
+    """The lag of one axis (module docstring), s: the shift delta minimising
+    RMS(measured(t_k) - commanded(t_k - delta)) over the inner samples.
+
+    Args:
+        t: (n,) sample times, s, increasing. measured, commanded: (n,) the axis measured and
+            commanded at them (same unit).
+        max_lag_s: the search's half-width, s.
+        still_below: a command whose peak to peak is at most this has no lag (NaN).
+    Returns:
+        (lag s, NaN for a still command; the RMS residual at it, the axis's unit).
+    Raises:
+        InvalidConfigError: shapes that differ, times not increasing, a value not finite, fewer
+            than :data:`MIN_SAMPLES` samples inside the search's margins.
+    """
+    t, y, c = (np.asarray(v, dtype=float) for v in (t, measured, commanded))
+    if t.ndim != 1 or y.shape != t.shape or c.shape != t.shape:
+        raise InvalidConfigError(
+            f"the times, measured and commanded samples must be (n,) alike, got {t.shape}, "
+            f"{y.shape}, {c.shape}"
+        )
+    # The package's one lag search: every shift by FFT on the samples' step, then to 1 us.
+    return signal_lag(
+        t, y, c, max_lag_s, offsets=True, still_below=still_below, min_samples=MIN_SAMPLES
+    )
+
+
+@dataclass(frozen=True)
+class RelativeLatency:
+    """The platform's and the surrogate's lags and their difference (module docstring).
+
+    Attributes:
+        relative_s: L_platform - L_surrogate, s (> 0: the platform lags); NaN when an axis
+            is still.
+        surrogate_lag_s, platform_lag_s: each axis's lag against its own command, s.
+        platform_axis: the direction the platform is judged along, in words ("X", "Y", "Z" or
+            its components: :func:`~stewart_drake.base.signals.direction_words`).
+        surrogate_rms_m, platform_rms_m: the RMS residual at each lag, m.
+        tolerance_s: the verdict's bound on |relative_s|, s. samples: samples judged.
+        servo_lag_s: the carriage's lag behind the command it was given (``s_cmd``), s;
+            NaN when judged against that command itself.
+        matching_delay_s: the mean delay lag matching gave the carriage's command over the
+            window, s (NaN: none was given).
+        platform_direction: (3,) the unit direction the platform is judged along: the principal
+            direction of its reference's translations over the window.
+    """
+
+    relative_s: float
+    surrogate_lag_s: float
+    platform_lag_s: float
+    platform_axis: str
+    surrogate_rms_m: float
+    platform_rms_m: float
+    tolerance_s: float
+    samples: int
+    servo_lag_s: float = math.nan
+    matching_delay_s: float = math.nan
+    platform_direction: tuple = (0.0, 0.0, 1.0)
+
+    @property
+    def passed(self) -> bool:
+        """|relative_s| <= tolerance_s (False when it is NaN)."""
+        return bool(abs(self.relative_s) <= self.tolerance_s)
+
+    def line(self) -> str:
+        """The verdict in one line, naming what it compares."""
+        against = "s_ref, its trace" if self.servo_lag_s == self.servo_lag_s else "s_cmd"
+        what = (
+            "relative latency, platform after surrogate (each axis's lag behind its own "
+            f"reference on the run's clock, from its encoders: the carriage's s against {against}"
+            f", the platform's {self.platform_axis} against the reference's)"
+        )
+        matched = ""
+        if self.matching_delay_s == self.matching_delay_s:
+            matched = (
+                f"; its command delayed {1e3 * self.matching_delay_s:+.1f} ms on average by lag "
+                f"matching, its servo {1e3 * self.servo_lag_s:+.1f} ms behind that command"
+            )
+        lags = (
+            f"surrogate {1e3 * self.surrogate_lag_s:+.1f} ms (RMS {1e6 * self.surrogate_rms_m:.0f}"
+            f" um{matched}), platform {1e3 * self.platform_lag_s:+.1f} ms (RMS "
+            f"{1e6 * self.platform_rms_m:.0f} um) over {self.samples} periods"
+        )
+        bound = f"|relative| <= {1e3 * self.tolerance_s:g} ms (one control period)"
+        if self.relative_s != self.relative_s:
+            still = [
+                n
+                for n, lag in (
+                    ("the surrogate", self.surrogate_lag_s),
+                    ("the platform", self.platform_lag_s),
+                )
+                if lag != lag
+            ]
+            return f"{what}: not measured, {' and '.join(still)} did not move; FAIL: {bound}"
+        verdict = "PASS" if self.passed else "FAIL"
+        # Two decimals: a figure at the bound reads on its side of it (-10.04 ms, not -10.0).
+        return f"{what}: {1e3 * self.relative_s:+.2f} ms ({lags}); {verdict}: {bound}"
+
+
+def judged_relative_latency(
+    t,
+    x_measured,
+    x_commanded,
+    s_measured,
+    s_commanded,
+    tolerance_s: float,
+    t_from: float = -math.inf,
+    max_lag_s: float = MAX_LAG_S,
+    s_count_m: float = 0.0,
+    x_count_m: float = 0.0,
+    s_reference=None,
+    delays_s=None,
+) -> RelativeLatency:
+    """The relative latency of a run from its encoders, judged (:class:`RelativeLatency`).
+
+    Args:
+        t: (n,) the periods' run times, s. x_measured, x_commanded: (n, 6) the platform's
+            pose from its encoders and the reference's, rad and m. s_measured, s_commanded:
+            (n,) the carriage's position read and commanded, m.
+        s_reference: (n,) the carriage's reference on the run's clock (before lag matching's
+            delay), m: the surrogate's lag is judged against it, and its servo's lag behind
+            ``s_commanded`` reported beside; None: judged against ``s_commanded``.
+        delays_s: (n,) the delay lag matching gave the carriage's command each period, s
+            (its mean over the window is reported); None: none.
+        tolerance_s: the verdict's bound, s (one control period). t_from: the window's start
+            (the end of the homing lead-in), s.
+        s_count_m, x_count_m: one encoder count of each axis, m: a command moving less than
+            20 of them is still (no lag).
+    Raises:
+        InvalidConfigError: as :func:`axis_lag`'s; shapes that differ; tolerance not > 0.
+    """
+    t = np.asarray(t, dtype=float)
+    x_m, x_c = np.asarray(x_measured, dtype=float), np.asarray(x_commanded, dtype=float)
+    if x_m.shape != (t.size, 6) or x_c.shape != (t.size, 6):
+        raise InvalidConfigError(
+            f"the poses must be ({t.size}, 6), got {x_m.shape} and {x_c.shape}"
+        )
+    if not 0 < tolerance_s < math.inf:
+        raise InvalidConfigError(f"tolerance_s must be > 0 s, got {tolerance_s}")
+    window = t >= t_from
+    t_w = t[window]
+    s_m, s_c = np.asarray(s_measured, dtype=float), np.asarray(s_commanded, dtype=float)
+    if s_m.shape != t.shape or s_c.shape != t.shape:
+        raise InvalidConfigError(
+            f"the surrogate's samples must be ({t.size},), got {s_m.shape} and {s_c.shape}"
+        )
+    still = 20 * s_count_m
+    servo_lag, s_judged = math.nan, s_c
+    if s_reference is not None:
+        s_judged = np.asarray(s_reference, dtype=float)
+        if s_judged.shape != t.shape:
+            raise InvalidConfigError(
+                f"the surrogate's reference must be ({t.size},), got {s_judged.shape}"
+            )
+        servo_lag, _ = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=still)
+    # The one relative latency (base.pair_figures, the Diagram's pair report's too): the
+    # platform's lag along the principal direction of its reference's translations over the
+    # window, the one lag matching uses too.
+    pair = relative_latency(
+        t_w,
+        x_c[window],
+        x_m[window],
+        s_judged[window],
+        s_m[window],
+        max_lag_s,
+        still_internal=20 * x_count_m,
+        still_external=still,
+        min_samples=MIN_SAMPLES,
+    )
+    u = cast(tuple, pair.direction)  # poses given: a direction found, never None
+    inner = inner_mask(t_w, max_lag_s)  # the samples the lags compared
+    delay = math.nan
+    if delays_s is not None:
+        d = np.asarray(delays_s, dtype=float)
+        if d.shape != t.shape:
+            raise InvalidConfigError(f"the delays must be ({t.size},), got {d.shape}")
+        if np.any(np.isfinite(d[window][inner])):
+            delay = float(np.nanmean(d[window][inner]))
+    return RelativeLatency(
+        relative_s=pair.relative_s,
+        surrogate_lag_s=pair.external_lag_s,
+        platform_lag_s=pair.internal_lag_s,
+        platform_axis=direction_words(np.array(u)),
+        platform_direction=u,
+        surrogate_rms_m=pair.external_rms_m,
+        platform_rms_m=pair.internal_rms_m,
+        tolerance_s=float(tolerance_s),
+        samples=pair.samples,
+        servo_lag_s=float(servo_lag),
+        matching_delay_s=delay,
+    )
+
+
+__all__ = [
+    "RelativeLatency",
+    "axis_lag",
+    "check_surrogate_trace",
+    "command_surrogate",
+    "judged_relative_latency",
+    "lag_match",
+    "relative_latency_of_run",
+]

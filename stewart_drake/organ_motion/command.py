@@ -185,12 +185,12 @@ def with_surrogate(args, scenario):
 
     Raises:
         InvalidConfigError: --surrogate-param without ``--surrogate model`` or a bad model
-            (:func:`~stewart_drake.station.surrogate.report.correlation_model`);
+            (:func:`~stewart_drake.execution.trace_options.correlation_model`);
             MissingFileError: no such file.
     """
     from ..base.errors import InvalidConfigError
+    from ..execution.trace_options import correlation_model
     from ..station.surrogate.axis import SurrogateAxis
-    from ..station.surrogate.report import correlation_model
 
     if args.surrogate is None:
         if args.surrogate_param or args.surrogate_columns:
@@ -212,7 +212,7 @@ def with_surrogate(args, scenario):
 
 def _surrogate_verdict(args, rep, name: str, out: Path, tolerance) -> bool:
     """Print and write (``reproduce_<name>_surrogate.json``) the pair's figures
-    (:func:`~stewart_drake.station.surrogate.report.pair_report`); True when the surrogate is
+    (:func:`~stewart_drake.organ_motion.surrogate_pair.pair_report`); True when the surrogate is
     within the length tolerance of its signal and the relative latency within
     ``--surrogate-latency``."""
     import json
@@ -220,7 +220,7 @@ def _surrogate_verdict(args, rep, name: str, out: Path, tolerance) -> bool:
     import numpy as np
 
     from ..base.fileio import atomic_write
-    from ..station.surrogate.report import pair_report, report_lines
+    from .surrogate_pair import pair_report, report_lines
 
     result, axis = rep.result, rep.plan.scenario.surrogate
     t = np.asarray(result.t, float)

@@ -47,7 +47,7 @@ def add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, pl
         from ..station.surrogate.lag_matching import PlatformLagMatch
 
         # Along the internal motion's principal direction, as the pair's report measures
-        # the target's delay (sync_figures.relative_latency).
+        # the target's delay (base.pair_figures.relative_latency).
         x, v, _ = trajectory.evaluate(samples[0])
         u = signal.direction
         if u is None:  # not known: the principal direction of the samples

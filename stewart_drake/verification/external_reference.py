@@ -2,7 +2,7 @@
 ``verify INTERNAL --surrogate model --surrogate-param KEY=VALUE ...`` judges a measured surrogate
 against: the same signal ``reproduce INTERNAL --surrogate model`` moves the surrogate's stage by
 (:meth:`~stewart_drake.station.surrogate.axis.SurrogateAxis.signal` of the model
-:func:`~stewart_drake.station.surrogate.report.correlation_model` reads from the same words),
+:func:`~stewart_drake.execution.trace_options.correlation_model` reads from the same words),
 on SI (the platform's X), as a 2-column recorded file is read.
 
 When the internal motion repeats (a library motion) and the model neither drifts nor changes,
@@ -69,11 +69,11 @@ def model_reference(internal, params, duration_s: float) -> ExternalReference:
             a trace's ``end_time``). params: the words, or None for the motion itself.
         duration_s: s, the span made when the internal neither repeats nor ends.
     Raises:
-        InvalidConfigError: what :func:`~stewart_drake.station.surrogate.report.
+        InvalidConfigError: what :func:`~stewart_drake.execution.trace_options.
             correlation_model` refuses (an unknown key, a value without its unit).
     """
+    from ..execution.trace_options import correlation_model
     from ..station.surrogate.axis import SurrogateAxis
-    from ..station.surrogate.report import correlation_model
 
     model = correlation_model(params)
     period = getattr(internal, "repeat_period_s", None)

@@ -168,7 +168,7 @@ def _check_pair_options(args) -> None:
 
     Raises:
         InvalidConfigError: --surrogate-param without ``--surrogate model``, or a model refused
-            (:func:`~stewart_drake.station.surrogate.report.correlation_model`); --surrogate-map
+            (:func:`~stewart_drake.execution.trace_options.correlation_model`); --surrogate-map
             with a model; a surrogate without its measurement or the reverse, several
             --measured, --save-registration, --measured-pauses, --exclude-outliers, a QA
             record's options (``--record`` and those it takes: a record is of one motion's
@@ -177,7 +177,7 @@ def _check_pair_options(args) -> None:
             axes or base.
     """
     if args.surrogate == MODEL:
-        from ..station.surrogate.report import correlation_model
+        from ..execution.trace_options import correlation_model
 
         correlation_model(args.surrogate_param)  # refused before any work
         if args.surrogate_map:

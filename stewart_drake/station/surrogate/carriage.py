@@ -12,7 +12,8 @@ it on the run's clock exactly as :class:`~stewart_drake.references.homing.Homing
 platform's: the same lead-in (a quintic from where the carriage was read to the trace's start, in
 the same ``home_s``), then the trace on the same warped clock tau(t), ended at rest at the same
 time; so the two references are one clock's, and whatever differs between the two motions measured
-is the two loops' (their relative latency: :mod:`~.encoder_relative_latency`).
+is the two loops' (their relative latency:
+:func:`stewart_drake.base.pair_figures.relative_latency`).
 """
 
 from __future__ import annotations

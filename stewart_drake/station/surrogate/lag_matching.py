@@ -21,7 +21,7 @@ use at period k,
 so u_k = r_k - L_k g_k ~ -L g_k + b: a straight line in g whose slope is -L whatever L_k was. The
 slope is the exponentially weighted least-squares fit over the last ``memory_s`` (a time constant
 longer than a breathing cycle; the offset is the line's intercept); it is what the RMSE alignment of
-the verdict (:mod:`stewart_drake.station.surrogate.encoder_relative_latency`) minimises, to first
+the relative latency (:func:`stewart_drake.base.pair_figures.relative_latency`) minimises, to first
 order in L - L_k. The delay in use moves towards it by at most ``max_rate`` s per s (0.5 %: the
 carriage's speed changes by at most that), stays within +-``max_delay_s``, and holds until the fit
 has seen :data:`MIN_HISTORY_S` of readings and a reference moving at ``min_speed_m_s`` RMS.

@@ -1,61 +1,17 @@
-"""What a reproduced pair is judged by: each motion's fidelity, their relative latency, and the
-pair's relationship as reproduced against as asked (:mod:`.sync_figures`, the one definition of
-each figure), with the lines a command prints and the command-line form of a correlation model.
+"""What a pair reproduced in the Diagram (``reproduce ... --surrogate``) is judged by: each
+motion's fidelity, their relative latency, and the pair's relationship as reproduced against as
+asked (:mod:`stewart_drake.base.pair_figures`, the one definition of each figure), with the lines
+the command prints.
 """
-
-import re
 
 import numpy as np
 
-from ...base.errors import InvalidConfigError
-from ...base.measures import rms_per_axis
-from ...base.signals import principal_displacement
-from .correlation import CorrelationModel
-from .sync_figures import pair_figures, relative_latency
+from ..base.measures import rms_per_axis
+from ..base.pair_figures import pair_figures, relative_latency
+from ..base.signals import principal_displacement
 
-#: ``--surrogate-param`` keys: the :class:`~.correlation.CorrelationModel` field each sets.
-MODEL_KEYS = {
-    "ratio": "amplitude_ratio",
-    "lead": "lead_s",
-    "drift": "drift_m_per_s",
-    "change_at": "change_at_s",
-    "lead_after": "lead_after_s",
-    "ratio_after": "ratio_after",
-    "blend": "change_blend_s",
-}
-#: Units a value may carry: factor to SI.
-_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3, "m/s": 1.0, "mm/s": 1e-3, "mm/min": 1e-3 / 60}
 #: The figures compared to 5 %, as asked against as reproduced (the pair's relationship).
 COMPARED = ("lead_s", "hysteresis_area_m2", "correlation", "amplitude_ratio")
-
-
-def correlation_model(items) -> CorrelationModel:
-    """The :class:`~.correlation.CorrelationModel` of ``KEY=VALUE`` words (:data:`MODEL_KEYS`;
-    values with a unit of ``s``, ``ms``, ``mm/s``, ``mm/min``, ``m/s`` or none), validated.
-
-    Raises:
-        InvalidConfigError: an unknown key (the keys listed), a value that is not a number with
-            one of those units, a model refused by its validation.
-    """
-    fields = {}
-    for item in items or ():
-        key, _, value = item.partition("=")
-        if key not in MODEL_KEYS:
-            raise InvalidConfigError(
-                f"--surrogate-param {item!r}: the keys are {', '.join(MODEL_KEYS)}"
-            )
-        match = re.fullmatch(r"\s*([-+0-9.eE]+)\s*([a-z/]*)\s*", value)
-        if match is None or match.group(2) not in _UNITS:
-            raise InvalidConfigError(
-                f"--surrogate-param {item!r}: a number with a unit of "
-                f"{', '.join(u for u in _UNITS if u)} (or none)"
-            )
-        try:
-            number = float(match.group(1))
-        except ValueError:
-            raise InvalidConfigError(f"--surrogate-param {item!r}: not a number") from None
-        fields[MODEL_KEYS[key]] = number * _UNITS[match.group(2)]
-    return CorrelationModel(**fields).validate()
 
 
 def pair_report(t, x, x_d, p, p_asked, window: tuple, split_s: float | None = None) -> dict:
@@ -67,9 +23,10 @@ def pair_report(t, x, x_d, p, p_asked, window: tuple, split_s: float | None = No
         window: (t0, t1) s, the measured window. split_s: when the relationship changes, s.
     Returns:
         {"window_s", "internal_rms_m" (3,) per translation axis, "external_rms_m",
-        "direction" (3,), "latency" (:func:`~.sync_figures.relative_latency`), "asked",
-        "reproduced" (:func:`~.sync_figures.pair_figures` each), "match" {figure: relative
-        difference}}.
+        "direction" (3,), "latency"
+        (:meth:`~stewart_drake.base.pair_figures.PairLatency.as_dict`), "asked",
+        "reproduced" (:func:`~stewart_drake.base.pair_figures.pair_figures` each), "match"
+        {figure: relative difference}}.
     """
     t = np.asarray(t, float)
     keep = (t >= window[0]) & (t <= window[1])
@@ -89,7 +46,7 @@ def pair_report(t, x, x_d, p, p_asked, window: tuple, split_s: float | None = No
         "internal_rms_m": rms_per_axis(xi - xa).tolist(),
         "external_rms_m": float(np.sqrt(np.mean((pk - pa) ** 2))),
         "direction": u.tolist(),
-        "latency": relative_latency(tk, xa, xi, pa, pk),
+        "latency": relative_latency(tk, xa, xi, pa, pk).as_dict(),
         "asked": asked,
         "reproduced": reproduced,
         "match": match,

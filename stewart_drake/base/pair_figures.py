@@ -1,6 +1,9 @@
 """The figures of an internal-external pair, defined once: each signal's lag behind what it was
 asked, their relative latency, and the pair's relationship (lead, hysteresis loop, correlation,
-amplitude ratio, baseline drift).
+amplitude ratio, baseline drift). Below everything that measures a pair: the Diagram's pair
+report (:mod:`stewart_drake.organ_motion.surrogate_pair`) and the robot's session from its
+encoders (:mod:`stewart_drake.live.session_surrogate`) both take their relative latency from
+:func:`relative_latency`.
 
 Sign conventions (docs/surrogate.md, "Reading the relative latency"; the words for time offsets
 as docs/index.md defines them):
@@ -21,11 +24,13 @@ as docs/index.md defines them):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from ...base.errors import InvalidConfigError
-from ...base.lag import signal_lag
-from ...base.signals import principal_direction
+from .errors import InvalidConfigError
+from .lag import inner_mask, signal_lag
+from .signals import principal_direction
 
 
 def _uniform(t: np.ndarray) -> float:
@@ -80,8 +85,7 @@ def pair_lags(
 ) -> tuple[np.ndarray | None, tuple[float, float], tuple[float, float]]:
     """Each motion's lag behind its command, the internal's along its principal direction: the
     one definition of what a relative latency subtracts (module docstring), the Diagram's pair
-    report's (:func:`relative_latency`) and the robot's session's
-    (:func:`~stewart_drake.station.surrogate.encoder_relative_latency.relative_latency`).
+    report's and the robot's session's, both through :func:`relative_latency`.
 
     Each lag by the package's one lag search
     (:func:`~stewart_drake.base.lag.signal_lag`, a constant offset removed) within +-``max_s``
@@ -125,35 +129,92 @@ def pair_lags(
     return u, lags[0], lags[1]
 
 
+@dataclass(frozen=True)
+class PairLatency:
+    """A pair's relative latency and the two lags it subtracts (module docstring).
+
+    Attributes:
+        relative_s: ``internal_lag_s - external_lag_s``, s (> 0: the internal target late);
+            NaN when a command is still.
+        internal_lag_s, external_lag_s: each motion's lag behind its command, s (> 0: late;
+            NaN: a command that does not move).
+        internal_rms_m, external_rms_m: the RMS residual at each lag (a constant offset
+            removed), m.
+        direction: the (3,) unit direction the internal's lag is measured along; None for a
+            displacement given along one.
+        samples: the samples compared, those more than the search's half-width from either end.
+    """
+
+    relative_s: float
+    internal_lag_s: float
+    external_lag_s: float
+    internal_rms_m: float
+    external_rms_m: float
+    direction: tuple | None
+    samples: int
+
+    def as_dict(self) -> dict:
+        """{"lag_internal_s", "lag_external_s", "relative_latency_s", "direction" (a list, or
+        None)}: the Diagram's pair report's keys."""
+        return {
+            "lag_internal_s": self.internal_lag_s,
+            "lag_external_s": self.external_lag_s,
+            "relative_latency_s": self.relative_s,
+            "direction": None if self.direction is None else list(self.direction),
+        }
+
+
 def relative_latency(
-    t, internal, internal_measured, external, external_measured, max_s: float = 0.5
-) -> dict:
+    t,
+    internal,
+    internal_measured,
+    external,
+    external_measured,
+    max_s: float = 0.5,
+    *,
+    still_internal: float = 0.0,
+    still_external: float = 0.0,
+    min_samples: int = 8,
+) -> PairLatency:
     """The relative latency of a pair (module docstring): the internal target's lag less the
-    surrogate's, each as :func:`pair_lags` measures it, on samples at a uniform step.
+    surrogate's, each as :func:`pair_lags` measures it, on samples at a uniform step. The one
+    definition: the Diagram's pair report and the robot's session (from its encoders) both
+    measure theirs here.
 
     Args:
         t: (n,) uniform s, the one clock of both.
         internal, internal_measured, external, external_measured: as :func:`pair_lags`'s.
         max_s: the largest lag searched, s.
+        still_internal, still_external, min_samples: as :func:`pair_lags`'s.
     Returns:
-        {"lag_internal_s", "lag_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
-        (> 0: the internal late), and "direction": the (3,) direction the internal's lag is
-        measured along (None for a displacement given along one).
+        :class:`PairLatency`.
     Raises:
-        InvalidConfigError: fewer than 8 samples, not uniform, or fewer than 8 inside the
-            search's margins; a principal direction of non-finite samples.
+        InvalidConfigError: fewer than 8 samples, not uniform, or fewer than 8 (and
+            ``min_samples``) inside the search's margins; a principal direction of non-finite
+            samples.
     """
     t = np.asarray(t, float)
     _check_record(t, max_s)
-    u, (d_i, _), (d_e, _) = pair_lags(
-        t, internal, internal_measured, external, external_measured, max_s
+    u, (d_i, rms_i), (d_e, rms_e) = pair_lags(
+        t,
+        internal,
+        internal_measured,
+        external,
+        external_measured,
+        max_s,
+        still_internal=still_internal,
+        still_external=still_external,
+        min_samples=min_samples,
     )
-    return {
-        "lag_internal_s": d_i,
-        "lag_external_s": d_e,
-        "relative_latency_s": d_i - d_e,
-        "direction": None if u is None else u.tolist(),
-    }
+    return PairLatency(
+        relative_s=d_i - d_e,
+        internal_lag_s=d_i,
+        external_lag_s=d_e,
+        internal_rms_m=rms_i,
+        external_rms_m=rms_e,
+        direction=None if u is None else tuple(float(v) for v in u),
+        samples=int(np.count_nonzero(inner_mask(t, max_s))),
+    )
 
 
 def lead_s(t, internal, external, max_s: float = 2.0) -> float:
@@ -174,7 +235,7 @@ def lead_s(t, internal, external, max_s: float = 2.0) -> float:
     Raises:
         InvalidConfigError: too few samples, not uniform, or a record shorter than 2 max_s.
     """
-    from ...base.lag import best_shift
+    from .lag import best_shift
 
     t = np.asarray(t, float)
     h = _uniform(t)
