@@ -215,7 +215,6 @@ def _cmd_analyze(args) -> int:
     import functools
     import json
 
-    from ..base.errors import InvalidConfigError
     from ..base.fileio import atomic_write
     from ..control.lqi.driver import LqiDriver
     from ..run.scenario_io import load_scenario
@@ -228,35 +227,7 @@ def _cmd_analyze(args) -> int:
     say = say_stage("analyze")
     name = Path(str(args.scenario)).stem
     if not isinstance(scenario.controller, LqiDriver):
-        print(
-            f"{name}: the loop's margins are the LQI's linear model "
-            f"(controller: !LqiDriver); this scenario's controller is a "
-            f"{type(scenario.controller).__name__}: "
-            + (
-                "its error budget instead"
-                if scenario.bus is None or scenario.bus.position_loop is None
-                else "the servos' own loop's margins instead"
-            )
-        )
-        record: dict[str, Any] = {"scenario": name}
-        robust = _crank_servo_margins(scenario)
-        if robust is not None:
-            print("\n".join(robust))
-            record["crank_servo_margins"] = robust
-        servos_loop = _position_loop_margins(scenario)
-        if servos_loop is not None:
-            print("\n".join(servos_loop))
-            why = (
-                f"{name}'s servos run their own position loop, which the error budget's "
-                "simulation (the host's controller at the bus's period) does not hold: its "
-                "figures are the bus emulator's (python benchmarks/servo_departures.py; "
-                'docs/robot.md, "The servo\'s own loop")'
-            )
-            if args.budget is not None:
-                raise InvalidConfigError(f"--budget: {why}")
-            print(f"no error budget: {why}")
-            return 0
-        return _budget(args, scenario, x0, name, out, say, record)
+        return _not_an_lqi(args, scenario, x0, name, out, say)
     say("linearizing the loop and computing the margins of the 6 axes ...")
     models = loop_models(scenario, x0, integrator=args.integrator)
     figures = axis_figures(models)
@@ -299,6 +270,46 @@ def _cmd_analyze(args) -> int:
     if args.budget is not None:
         return _budget(args, scenario, x0, name, out, say, {"scenario": name})
     return 0
+
+
+def _not_an_lqi(args, scenario, x0, name: str, out, say) -> int:
+    """``analyze`` of a scenario whose controller is not the LQI: the crank servo's margins or
+    the servos' own loop's, then its error budget where the host's controller runs the loop.
+
+    Raises:
+        InvalidConfigError: ``--budget`` on servos that run their own position loop.
+    """
+    from ..base.errors import InvalidConfigError
+
+    print(
+        f"{name}: the loop's margins are the LQI's linear model "
+        f"(controller: !LqiDriver); this scenario's controller is a "
+        f"{type(scenario.controller).__name__}: "
+        + (
+            "its error budget instead"
+            if scenario.bus is None or scenario.bus.position_loop is None
+            else "the servos' own loop's margins instead"
+        )
+    )
+    record: dict[str, Any] = {"scenario": name}
+    robust = _crank_servo_margins(scenario)
+    if robust is not None:
+        print("\n".join(robust))
+        record["crank_servo_margins"] = robust
+    servos_loop = _position_loop_margins(scenario)
+    if servos_loop is not None:
+        print("\n".join(servos_loop))
+        why = (
+            f"{name}'s servos run their own position loop, which the error budget's "
+            "simulation (the host's controller at the bus's period) does not hold: its "
+            "figures are the bus emulator's (python benchmarks/servo_departures.py; "
+            'docs/robot.md, "The servo\'s own loop")'
+        )
+        if args.budget is not None:
+            raise InvalidConfigError(f"--budget: {why}")
+        print(f"no error budget: {why}")
+        return 0
+    return _budget(args, scenario, x0, name, out, say, record)
 
 
 def _crank_servo_margins(scenario) -> list[str] | None:

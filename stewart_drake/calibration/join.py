@@ -298,6 +298,42 @@ def mean_pose(poses) -> np.ndarray:
     return np.concatenate([rpy, poses[:, 3:].mean(axis=0)])
 
 
+def _is_estimate(clock_offset, path_file) -> bool:
+    """Whether the tracker's clock offset is to be estimated (``"estimate"``), else a number.
+
+    Raises:
+        InvalidConfigError: neither a finite number nor ``"estimate"``; ``"estimate"`` without
+            the path file.
+    """
+    estimate = isinstance(clock_offset, str) and clock_offset == "estimate"
+    if not estimate and not (
+        isinstance(clock_offset, (int, float)) and math.isfinite(clock_offset)
+    ):
+        raise InvalidConfigError(
+            f"the tracker's clock offset must be a number of seconds or 'estimate', got "
+            f"{clock_offset!r}"
+        )
+    if estimate and path_file is None:
+        raise InvalidConfigError("estimating the tracker's clock offset needs the path file")
+    return estimate
+
+
+def _check_gap(tracker_file, k: int, gap) -> None:
+    """Refuse pose ``k``'s mean tracked pose ``gap`` (6,) (rad, m) from the planned one beyond
+    :data:`MAX_POSE_GAP`: the tracker's frames are not B and E, or its clock is another.
+
+    Raises:
+        InvalidConfigError: naming the pose, the gap and what to give.
+    """
+    if np.max(gap[:3]) > MAX_POSE_GAP[0] or np.max(gap[3:]) > MAX_POSE_GAP[1]:
+        raise InvalidConfigError(
+            f"{tracker_file}: the mean tracked pose of pose {k} is {np.max(gap[:3]):.3g} rad "
+            f"and {np.max(gap[3:]) * 1e3:.3g} mm from the planned one: the tracker must "
+            f"measure the platform frame E in the base frame B, or its frames be given "
+            f"(--registration REG.yaml, docs/calibration.md), on the robot's clock"
+        )
+
+
 def join(
     encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=None, registration=None
 ) -> Joined:
@@ -326,16 +362,7 @@ def join(
             an offset that is neither a finite number nor ``"estimate"``, ``"estimate"``
             without ``path_file`` or refused by :func:`~.clock.estimate_clock_offset`.
     """
-    estimate = isinstance(clock_offset, str) and clock_offset == "estimate"
-    if not estimate and not (
-        isinstance(clock_offset, (int, float)) and math.isfinite(clock_offset)
-    ):
-        raise InvalidConfigError(
-            f"the tracker's clock offset must be a number of seconds or 'estimate', got "
-            f"{clock_offset!r}"
-        )
-    if estimate and path_file is None:
-        raise InvalidConfigError("estimating the tracker's clock offset needs the path file")
+    estimate = _is_estimate(clock_offset, path_file)
     log = read_encoder_log(encoder_log)
     tracker = read_table(tracker_file, "tracker file", TRACKER_COLUMNS, TRACKER_REMEDY)
     plan = read_table(windows_file, "windows file", WINDOW_COLUMNS, WINDOWS_REMEDY)
@@ -377,14 +404,7 @@ def join(
         readings[k] = q_log[rows].mean(axis=0)
         spread[k] = float(np.max(q_log[rows].std(axis=0)))
         windows[k], n_log[k], n_tracker[k] = (w0, w1), rows.sum(), samples.sum()
-        gap = np.abs(mean_pose(x_base[samples]) - planned[k])
-        if np.max(gap[:3]) > MAX_POSE_GAP[0] or np.max(gap[3:]) > MAX_POSE_GAP[1]:
-            raise InvalidConfigError(
-                f"{tracker_file}: the mean tracked pose of pose {k} is {np.max(gap[:3]):.3g} rad "
-                f"and {np.max(gap[3:]) * 1e3:.3g} mm from the planned one: the tracker must "
-                f"measure the platform frame E in the base frame B, or its frames be given "
-                f"(--registration REG.yaml, docs/calibration.md), on the robot's clock"
-            )
+        _check_gap(tracker_file, k, np.abs(mean_pose(x_base[samples]) - planned[k]))
     return Joined(
         poses, readings, planned, windows, n_log, n_tracker, spread, float(clock_offset), clock
     )

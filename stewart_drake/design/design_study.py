@@ -154,17 +154,7 @@ def run_design(
     ]
     if cheapest:
         searches += cheapest_motor(task, folder, seed, runner, popsize, maxiter, progress, say)
-    chosen = {}
-    if searches[0].feasible:
-        chosen["objective"] = searches[0].best
-    ladder = [s for s in searches[1:] if s.feasible]
-    if ladder:
-        chosen["cheapest"] = ladder[0].best
-    binding = ""
-    if not any(s.feasible for s in searches):
-        best = min((s.best for s in searches), key=lambda e: e.shortfall)
-        name, margin = best.binding
-        binding = f"{name}: margin {margin:+.3g} ({MARGINS[name]})"
+    chosen, binding = _chosen(searches)
     outcome = DesignOutcome(reference, searches, chosen, binding)
     designs = {role: e.design for role, e in _columns(outcome)}
     designs["reference"] = reference_design()
@@ -187,6 +177,24 @@ def run_design(
     say(f"writing the report, its plots and the designs' scenarios in {out}")
     outcome.files = _write(out, outcome, requirements, objective, base)
     return outcome
+
+
+def _chosen(searches: list[SearchResult]) -> tuple[dict, str]:
+    """The designs chosen ({"objective": the main search's best, "cheapest": the first feasible
+    motor of the ladder's}, each where feasible) and, when no search found a feasible design,
+    the margin that binds the least short of them in words ("" otherwise)."""
+    chosen = {}
+    if searches[0].feasible:
+        chosen["objective"] = searches[0].best
+    ladder = [s for s in searches[1:] if s.feasible]
+    if ladder:
+        chosen["cheapest"] = ladder[0].best
+    binding = ""
+    if not any(s.feasible for s in searches):
+        best = min((s.best for s in searches), key=lambda e: e.shortfall)
+        name, margin = best.binding
+        binding = f"{name}: margin {margin:+.3g} ({MARGINS[name]})"
+    return chosen, binding
 
 
 def _columns(outcome: DesignOutcome) -> list:

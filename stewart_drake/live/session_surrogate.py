@@ -245,6 +245,20 @@ class RelativeLatency:
         return f"{what}: {1e3 * self.relative_s:+.2f} ms ({lags}); {verdict}: {bound}"
 
 
+def _samples(what: str, shape: tuple, *values) -> list[np.ndarray]:
+    """``values`` as float arrays, each of ``shape``.
+
+    Raises:
+        InvalidConfigError: "``what`` must be ``shape``", with the shapes given.
+    """
+    arrays = [np.asarray(v, dtype=float) for v in values]
+    if any(a.shape != shape for a in arrays):
+        raise InvalidConfigError(
+            f"{what} must be {shape}, got {' and '.join(str(a.shape) for a in arrays)}"
+        )
+    return arrays
+
+
 def judged_relative_latency(
     t,
     x_measured,
@@ -278,28 +292,16 @@ def judged_relative_latency(
         InvalidConfigError: as :func:`axis_lag`'s; shapes that differ; tolerance not > 0.
     """
     t = np.asarray(t, dtype=float)
-    x_m, x_c = np.asarray(x_measured, dtype=float), np.asarray(x_commanded, dtype=float)
-    if x_m.shape != (t.size, 6) or x_c.shape != (t.size, 6):
-        raise InvalidConfigError(
-            f"the poses must be ({t.size}, 6), got {x_m.shape} and {x_c.shape}"
-        )
+    x_m, x_c = _samples("the poses", (t.size, 6), x_measured, x_commanded)
     if not 0 < tolerance_s < math.inf:
         raise InvalidConfigError(f"tolerance_s must be > 0 s, got {tolerance_s}")
     window = t >= t_from
     t_w = t[window]
-    s_m, s_c = np.asarray(s_measured, dtype=float), np.asarray(s_commanded, dtype=float)
-    if s_m.shape != t.shape or s_c.shape != t.shape:
-        raise InvalidConfigError(
-            f"the surrogate's samples must be ({t.size},), got {s_m.shape} and {s_c.shape}"
-        )
+    s_m, s_c = _samples("the surrogate's samples", t.shape, s_measured, s_commanded)
     still = 20 * s_count_m
     servo_lag, s_judged = math.nan, s_c
     if s_reference is not None:
-        s_judged = np.asarray(s_reference, dtype=float)
-        if s_judged.shape != t.shape:
-            raise InvalidConfigError(
-                f"the surrogate's reference must be ({t.size},), got {s_judged.shape}"
-            )
+        (s_judged,) = _samples("the surrogate's reference", t.shape, s_reference)
         servo_lag, _ = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=still)
     # The one relative latency (base.pair_figures, the Diagram's pair report's too): the
     # platform's lag along the principal direction of its reference's translations over the
@@ -316,14 +318,12 @@ def judged_relative_latency(
         min_samples=MIN_SAMPLES,
     )
     u = cast(tuple, pair.direction)  # poses given: a direction found, never None
-    inner = inner_mask(t_w, max_lag_s)  # the samples the lags compared
     delay = math.nan
     if delays_s is not None:
-        d = np.asarray(delays_s, dtype=float)
-        if d.shape != t.shape:
-            raise InvalidConfigError(f"the delays must be ({t.size},), got {d.shape}")
-        if np.any(np.isfinite(d[window][inner])):
-            delay = float(np.nanmean(d[window][inner]))
+        (d,) = _samples("the delays", t.shape, delays_s)
+        judged = d[window][inner_mask(t_w, max_lag_s)]  # the samples the lags compared
+        if np.any(np.isfinite(judged)):
+            delay = float(np.nanmean(judged))
     return RelativeLatency(
         relative_s=pair.relative_s,
         surrogate_lag_s=pair.external_lag_s,
