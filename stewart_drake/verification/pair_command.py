@@ -262,7 +262,6 @@ def cmd_verify_pair(args) -> int:
     """
     import sys
 
-    from ..base.fileio import check_replaceable
     from ..calibration.registration_file import read_registration
     from ..execution.trace_options import key_values
     from ..organ_motion.command import motion_scenario
@@ -270,7 +269,6 @@ def cmd_verify_pair(args) -> int:
     from ..references.traces import load_trace
     from ..run.plan import robot_geometry
     from .external_reference import model_reference
-    from .measured_motion import read_measured
 
     _check_pair_options(args)
     tolerance = parse_tolerance(args.tolerance)
@@ -278,19 +276,7 @@ def cmd_verify_pair(args) -> int:
     registration = read_registration(args.registration) if args.registration else None
     out = Path(args.out)
     paths = (args.measured[0], args.measured_surrogate)
-    stems = [
-        f"verify_{name}_{Path(paths[0]).stem}",
-        f"verify_{Path(args.surrogate).stem}_{Path(paths[1]).stem}",
-        f"verify_{name}_pair",
-    ]
-    if len(set(stems)) != 3:
-        raise InvalidConfigError(
-            "the motion's and the surrogate's reports would have one name: give files of "
-            "different names"
-        )
-    for stem in stems:
-        for suffix in (".md", ".png", ".json") if stem != stems[2] else (".md", ".json"):
-            check_replaceable(out / f"{stem}{suffix}")
+    stems = _pair_stems(out, name, args.surrogate, paths)
     reference = scenario.reference.make(robot_geometry(scenario), scenario.duration_s, None)
     if args.surrogate == MODEL:
         surrogate = model_reference(reference, args.surrogate_param, scenario.duration_s)
@@ -298,22 +284,7 @@ def cmd_verify_pair(args) -> int:
         print(f"verify: reading {args.surrogate}", file=sys.stderr, flush=True)
         surrogate = load_trace(args.surrogate, key_values(args.surrogate_map, "--surrogate-map"))
         surrogate = _on_the_motions_clock(surrogate, reference, args.surrogate)
-    print(f"verify: reading {paths[0]}", file=sys.stderr, flush=True)
-    if is_encoder_log(paths[0]):
-        internal_measured, surrogate_measured = read_encoder_pair(
-            paths[0], paths[1], robot_geometry(scenario), surrogate
-        )
-    else:
-        internal_measured = read_measured(
-            paths[0], args.measured_columns or "", key_values(args.measured_map, "--measured-map")
-        )
-        print(f"verify: reading {paths[1]}", file=sys.stderr, flush=True)
-        surrogate_measured = read_measured(
-            paths[1],
-            args.measured_surrogate_columns or "",
-            key_values(args.measured_surrogate_map, "--measured-surrogate-map"),
-            "--measured-surrogate-columns",
-        )
+    internal_measured, surrogate_measured = _read_measured_pair(args, paths, scenario, surrogate)
     print("verify: aligning and judging the motion and its surrogate", file=sys.stderr, flush=True)
     pair = verify_pair(
         reference,
@@ -336,6 +307,60 @@ def cmd_verify_pair(args) -> int:
         print(note)
     print(f"wrote {', '.join(str(p) for p in written)}")
     return exit_status(pair.verdicts)
+
+
+def _pair_stems(out: Path, name: str, surrogate: str, paths) -> list[str]:
+    """The three reports' names (the motion's, the surrogate's, the pair's), each file of
+    them replaceable in ``out``.
+
+    Raises:
+        InvalidConfigError: two reports of one name; a file in the way that is not the tool's.
+    """
+    from ..base.fileio import check_replaceable
+
+    stems = [
+        f"verify_{name}_{Path(paths[0]).stem}",
+        f"verify_{Path(surrogate).stem}_{Path(paths[1]).stem}",
+        f"verify_{name}_pair",
+    ]
+    if len(set(stems)) != 3:
+        raise InvalidConfigError(
+            "the motion's and the surrogate's reports would have one name: give files of "
+            "different names"
+        )
+    for stem in stems:
+        for suffix in (".md", ".png", ".json") if stem != stems[2] else (".md", ".json"):
+            check_replaceable(out / f"{stem}{suffix}")
+    return stems
+
+
+def _read_measured_pair(args, paths, scenario, surrogate):
+    """(the internal's measured motion, the surrogate's): both from one encoder log and its
+    carriage, or each file through the one reader of measured files with its options.
+
+    Raises:
+        MissingFileError, CorruptFileError, InvalidConfigError: as the readers'.
+    """
+    import sys
+
+    from ..execution.trace_options import key_values
+    from ..run.plan import robot_geometry
+    from .measured_motion import read_measured
+
+    print(f"verify: reading {paths[0]}", file=sys.stderr, flush=True)
+    if is_encoder_log(paths[0]):
+        return read_encoder_pair(paths[0], paths[1], robot_geometry(scenario), surrogate)
+    internal_measured = read_measured(
+        paths[0], args.measured_columns or "", key_values(args.measured_map, "--measured-map")
+    )
+    print(f"verify: reading {paths[1]}", file=sys.stderr, flush=True)
+    surrogate_measured = read_measured(
+        paths[1],
+        args.measured_surrogate_columns or "",
+        key_values(args.measured_surrogate_map, "--measured-surrogate-map"),
+        "--measured-surrogate-columns",
+    )
+    return internal_measured, surrogate_measured
 
 
 def _on_the_motions_clock(surrogate, reference, path):

@@ -441,18 +441,26 @@ def verify_pair(
         )
         if swapped:
             judgement = judge_relative(tau, max_relative_latency_s, half, names, why, swapped)
-    notes = []
-    apart = surrogate.shift_s - d_s
-    if abs(apart) > 2 * verification.COARSE_STEP_S:
-        notes.append(
-            f"on its own, {names[1]} matches its reference best {seconds(abs(apart))} "
-            f"{'later' if apart > 0 else 'earlier'} than on the internal's clock: its fidelity is "
-            "that of its own best match, the relative latency that of the pair's (searched "
-            f"within +-{seconds(half)} of the internal's)"
-        )
+    notes = _own_match_notes(surrogate.shift_s - d_s, names[1], half)
     return PairVerification(
         internal, surrogate, float(tau), float(d_s), float(d_i), (-half, half), notes, judgement
     )
+
+
+def _own_match_notes(apart: float, name: str, half: float) -> list[str]:
+    """The note when the surrogate alone matches its reference best ``apart`` s from where
+    it stands on the internal's clock (more than two of verify's coarse steps): its fidelity
+    and the pair's relative latency are then measured at two shifts."""
+    from .verify import COARSE_STEP_S
+
+    if abs(apart) <= 2 * COARSE_STEP_S:
+        return []
+    return [
+        f"on its own, {name} matches its reference best {seconds(abs(apart))} "
+        f"{'later' if apart > 0 else 'earlier'} than on the internal's clock: its fidelity is "
+        "that of its own best match, the relative latency that of the pair's (searched "
+        f"within +-{seconds(half)} of the internal's)"
+    ]
 
 
 __all__ = [

@@ -176,6 +176,30 @@ def fit_registration(
     search, _ = search_range(reference, t, clock_offset_s, max_latency_s, whole=False)
     fit = _fit(reference, t, y, rot, search)
     sol, J, e, unpack, rms_m, rms_rad = fit.sol, fit.J, fit.e, fit.unpack, fit.rms_m, fit.rms_rad
+    _check_fit(fit, measured, name, rot)
+    _check_as_written(fit, reference, measured, search)
+    R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
+    sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)
+    return MotionRegistration(
+        R_BT,
+        p_BT,
+        R_ME.T,
+        p_EM,
+        sigma_B,
+        sigma_M,
+        rms_m,
+        rms_rad,
+        fit.shift_s,
+        fit.samples,
+        name,
+        str(measured.path),
+    )
+
+
+def _check_fit(fit, measured: MeasuredMotion, name: str, rot: bool) -> None:
+    """Refuse a fit whose residual is too large, then one that leaves a parameter of the
+    frames undetermined (:func:`fit_registration`'s Raises)."""
+    sol, J, e, rms_m, rms_rad = fit.sol, fit.J, fit.e, fit.rms_m, fit.rms_rad
     # The residual first: a marker that did not follow the motion leaves residuals so large
     # that every direction of the frames looks undetermined too, and that refusal would send
     # the user to the registration motion they have just measured.
@@ -197,6 +221,13 @@ def fit_registration(
             "show): register with the library's motion registration, which moves along and "
             "turns about every axis"
         )
+
+
+def _check_as_written(fit, reference, measured: MeasuredMotion, search) -> None:
+    """Refuse a file that, read as a mirrored frame or with its rotations reversed, the
+    registration motion explains clearly better (:func:`fit_registration`'s Raises)."""
+    t, y, rot = measured.t, measured.poses, measured.rotations_measured
+    rms_m, rms_rad = fit.rms_m, fit.rms_rad
     for what, y_other in _other_frames(y, rot):
         other = _fit(reference, t, y_other, rot, search)
         if _explains_better(other, fit, rot):
@@ -211,22 +242,6 @@ def fit_registration(
                 + "): a frame fitted to it would be wrong; correct the export (its axes' "
                 "signs, its rotations' sense) and measure again"
             )
-    R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
-    sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)
-    return MotionRegistration(
-        R_BT,
-        p_BT,
-        R_ME.T,
-        p_EM,
-        sigma_B,
-        sigma_M,
-        rms_m,
-        rms_rad,
-        fit.shift_s,
-        fit.samples,
-        name,
-        str(measured.path),
-    )
 
 
 class _Fit(NamedTuple):
