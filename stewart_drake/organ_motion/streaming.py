@@ -105,6 +105,17 @@ def horizon_error(followed, truth, horizon_s: float, from_s: float = 0.0) -> dic
     return out
 
 
+def _following(say, rate: float, name: str):
+    """The progress callback ``(i, n)`` of following a stream at ``rate`` Hz with the predictor
+    ``name``, telling ``say`` (None: no progress)."""
+    if say is None:
+        return None
+    return lambda i, n: say(
+        f"following the stream of {n} samples at {rate:g} Hz with {name}: {i} done "
+        f"({100 * i / n:.0f} %)"
+    )
+
+
 def follow_motion(
     reference,
     latency_s: float,
@@ -149,17 +160,8 @@ def follow_motion(
     stream = stream_of(reference, latency_s, rate, end)
     if form is not None:
         stream = form.apply(stream)
-
-    def progress(name):
-        if say is None:
-            return None
-        return lambda i, n: say(
-            f"following the stream of {n} samples at {rate:g} Hz with {name}: {i} done "
-            f"({100 * i / n:.0f} %)"
-        )
-
     followed = {
-        name: follow(stream, name, settings, loop_lag_s, progress=progress(name))
+        name: follow(stream, name, settings, loop_lag_s, progress=_following(say, rate, name))
         for name in ("none", predictor)
     }
     t = np.arange(from_s, end, MEASURE_STEP_S)
@@ -255,14 +257,14 @@ def reproduce_stream(
 
     from ..run.plan import make_plan, run_reference
     from ..run.shaping import shape_followed, shaping_limits
-    from .reproduction import measured_against, reproduce
+    from .reproduction import reproduce
 
     truth = run_reference(scenario)
     end = getattr(truth, "end_time", None)
     duration = float(min(duration_s or end or STREAM_DEFAULT_S, end or np.inf))
     say = _stderr_line if progress else None
-    if say is not None:
-        say(f"reproduce: following the motion streamed {latency_s * 1e3:g} ms late ...")
+    tell = say or (lambda line: None)
+    tell(f"reproduce: following the motion streamed {latency_s * 1e3:g} ms late ...")
     figures = follow_motion(
         truth, latency_s, predictor, rate_hz, duration, tolerance=tolerance, say=say
     )
@@ -273,15 +275,9 @@ def reproduce_stream(
         figures = follow_motion(
             streamed, latency_s, predictor, rate, duration, tolerance=tolerance, say=say
         )
-    if say is not None:
-        say("reproduce: shaping the followed reference to the robot's limits ...")
+    tell("reproduce: shaping the followed reference to the robot's limits ...")
     given = shape_followed(figures["followed"], shaping_limits(plan), duration)
-    t = np.arange(0.0, duration, MEASURE_STEP_S)
-    x_streamed = np.asarray(streamed.evaluate(t)[0])
-    figures["given"] = given
-    figures["shaped"] = stream_figures(x_streamed, given.evaluate(t)[0], tolerance)
-    figures["shaping"] = given.record.as_dict()
-    figures["band"] = band_figures(given, streamed, figures["followed"].stream)
+    figures.update(_given_figures(given, streamed, figures["followed"], duration, tolerance))
     figures["scale"] = scale
     rep = reproduce(
         scenario,
@@ -290,18 +286,41 @@ def reproduce_stream(
         progress=progress,
         on_checked=on_checked,
     )
-    t = np.asarray(rep.result.t, dtype=float)
-    x = np.asarray(rep.result.x[:, :6], dtype=float)
-    figures["robot"] = stream_figures(np.asarray(truth.evaluate(t)[0]), x, tolerance)
-    figures["reproduction"] = rep
-    figures["robot_tracking"] = rep.fidelity
-    figures["truth"] = truth
-    name = getattr(truth, "name", "the motion")
-    compared = f"the robot's true pose against the true motion ({name})"
-    figures["judged"] = measured_against(rep, truth, compared)
+    figures.update(_robot_figures(rep, truth, tolerance))
     figures["prediction_from_s"] = prediction_start(figures["followed"])
     figures["after_warm_up"] = after_warm_up(figures["judged"], figures["prediction_from_s"])
     return figures
+
+
+def _given_figures(given, streamed, followed, duration: float, tolerance) -> dict:
+    """:func:`reproduce_stream`'s figures of the shaped reference the robot is given: "given",
+    "shaped" (against the motion streamed), "shaping" (its record), "band"."""
+    t = np.arange(0.0, duration, MEASURE_STEP_S)
+    x_streamed = np.asarray(streamed.evaluate(t)[0])
+    return {
+        "given": given,
+        "shaped": stream_figures(x_streamed, given.evaluate(t)[0], tolerance),
+        "shaping": given.record.as_dict(),
+        "band": band_figures(given, streamed, followed.stream),
+    }
+
+
+def _robot_figures(rep, truth, tolerance) -> dict:
+    """:func:`reproduce_stream`'s figures of the robot's run ``rep`` against the true motion:
+    "robot", "reproduction", "robot_tracking", "truth", "judged"."""
+    from .reproduction import measured_against
+
+    t = np.asarray(rep.result.t, dtype=float)
+    x = np.asarray(rep.result.x[:, :6], dtype=float)
+    name = getattr(truth, "name", "the motion")
+    compared = f"the robot's true pose against the true motion ({name})"
+    return {
+        "robot": stream_figures(np.asarray(truth.evaluate(t)[0]), x, tolerance),
+        "reproduction": rep,
+        "robot_tracking": rep.fidelity,
+        "truth": truth,
+        "judged": measured_against(rep, truth, compared),
+    }
 
 
 def fitted_motion(plan, truth, scale_to_fit: bool = False) -> tuple:

@@ -226,6 +226,20 @@ def _check_pair_options(args) -> None:
             f"{record[0]} records one motion's verdict, and a pair has three: leave --surrogate "
             "out and verify each motion alone with --record"
         )
+    _check_pair_files(args)
+    if args.frame not in ("axes", "base"):
+        raise InvalidConfigError(f"--frame is axes or base, got {args.frame!r}")
+    if args.registration and args.frame != "axes":
+        raise InvalidConfigError("--registration gives the frames: leave --frame out")
+
+
+def _check_pair_files(args) -> None:
+    """Refuse an encoder log beside a tracker's file (not one clock), or an encoder log for the
+    surrogate with columns or a map (its columns are its own).
+
+    Raises:
+        InvalidConfigError: naming the files and what to give.
+    """
     logs = [is_encoder_log(p) for p in (args.measured[0], args.measured_surrogate)]
     if logs[0] != logs[1]:
         log, other = (
@@ -243,10 +257,6 @@ def _check_pair_options(args) -> None:
             f"{args.measured_surrogate}: an encoder log's columns are its own (the carriage's "
             "s [m]): leave --measured-surrogate-columns and --measured-surrogate-map out"
         )
-    if args.frame not in ("axes", "base"):
-        raise InvalidConfigError(f"--frame is axes or base, got {args.frame!r}")
-    if args.registration and args.frame != "axes":
-        raise InvalidConfigError("--registration gives the frames: leave --frame out")
 
 
 def cmd_verify_pair(args) -> int:
