@@ -268,16 +268,46 @@ def search(
         ResultsMismatchError, FolderInUseError: see :class:`~stewart_drake.execution.store.
             ResultStore`.
     """
+    _check_options(motor, objective, popsize, maxiter)
+    wall0 = time.perf_counter()
+    generations = _generations(
+        Path(out_dir), task, motor, objective, seed, runner, popsize, maxiter, progress
+    )
+    best = generations.best
+    assert best is not None
+    if not best.feasible:  # every margin of the best miss, for the report (one evaluation)
+        if say is not None:
+            say(f"{motor}: evaluating every margin of the best design, which misses the task")
+        best = evaluate(best.design, task, lazy=False)
+    return SearchResult(
+        motor,
+        objective,
+        int(seed),
+        best,
+        generations.evaluations,
+        generations.reused,
+        generations.generations,
+        time.perf_counter() - wall0,
+        generations.compute_s,
+    )
+
+
+def _generations(out: Path, task, motor, objective, seed, runner, popsize, maxiter, progress):
+    """The search's generations evolved in ``out`` (its store continued where it holds them),
+    under a progress bar; the store closed however the search ends.
+
+    Raises:
+        the typed error a worker raised (scipy wraps it in a RuntimeError of its own);
+        ResultsMismatchError, FolderInUseError: as :class:`~stewart_drake.execution.store.
+        ResultStore`'s.
+    """
     from tqdm import tqdm
 
     from ..execution.runners import SerialRunner
     from ..execution.store import ResultStore
 
-    _check_options(motor, objective, popsize, maxiter)
-    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     store = ResultStore(out, "design", _settings(task, seed, popsize, maxiter), "*_gen_*.json")
-    wall0 = time.perf_counter()
     generations: _Generations | None = None
     try:
         task_file = _task_file(out, task)
@@ -298,24 +328,7 @@ def search(
     except BaseException:
         store.close()
         raise
-    assert generations is not None
-    best = generations.best
-    assert best is not None
-    if not best.feasible:  # every margin of the best miss, for the report (one evaluation)
-        if say is not None:
-            say(f"{motor}: evaluating every margin of the best design, which misses the task")
-        best = evaluate(best.design, task, lazy=False)
-    return SearchResult(
-        motor,
-        objective,
-        int(seed),
-        best,
-        generations.evaluations,
-        generations.reused,
-        generations.generations,
-        time.perf_counter() - wall0,
-        generations.compute_s,
-    )
+    return generations
 
 
 def _check_options(motor: str, objective: str, popsize: int, maxiter: int) -> None:

@@ -151,6 +151,37 @@ def _urad(v) -> str:
     return "[" + ", ".join(f"{x * 1e6:.0f}" for x in v) + "]"
 
 
+def _calibrate_from_files(
+    folder: Path, files: dict, built, geometry, t_true, x_true, noise, tolerances, seed, counts
+):
+    """The rehearsal's calibration as a user's, through its files: the tracker's view of the
+    true poses (``t_true`` on the session's epoch clock, s) written, joined with the encoder
+    log and the windows, the measurements written and read back, the robot identified and its
+    ``robot.yaml`` written (each file added to ``files``). Returns (the join, the
+    identification)."""
+    from ..calibration.files import read_measurements, robot_section, write_measurements
+    from ..calibration.identify import identify
+    from ..calibration.join import join, write_tracker_file
+    from ..calibration.report import write_identified
+    from ..calibration.tracker import track
+
+    t_tracked, x_tracked = track(t_true, x_true, noise, seed)
+    files["tracker"] = write_tracker_file(folder / "tracker.csv", t_tracked, x_tracked)
+    joined = join(files["encoders"], files["tracker"], files["windows"])
+    files["measurements"] = write_measurements(
+        folder / "measurements.csv", joined.poses, joined.readings
+    )
+    data = read_measurements(files["measurements"], counts)
+    ident = identify(geometry, data.poses, data.readings, noise, tolerances)
+    files["robot"] = write_identified(
+        folder / "robot.yaml",
+        robot_section(built.robot, geometry),
+        ident,
+        files["measurements"],
+    )
+    return joined, ident
+
+
 def rehearse_on_bus(
     scenario,
     count: int,
@@ -181,16 +212,8 @@ def rehearse_on_bus(
             InvalidConfigError: the session did not drive the whole path (its end line).
     """
     from ..base.errors import InvalidConfigError
-    from ..calibration.files import (
-        nominal_at_temperature,
-        read_measurements,
-        robot_section,
-        write_measurements,
-    )
-    from ..calibration.identify import identify
-    from ..calibration.join import join, write_tracker_file
-    from ..calibration.report import write_identified
-    from ..calibration.tracker import COUNTS_PER_REV, track
+    from ..calibration.files import nominal_at_temperature
+    from ..calibration.tracker import COUNTS_PER_REV
     from ..robot.legs import readings
     from ..robot.tolerances import Tolerances
     from ..run.plan import as_built, robot_motor_limits
@@ -218,19 +241,8 @@ def rehearse_on_bus(
     )
     files.update(log=run.logs, encoders=run.encoder_log)
     epoch = time.time() - time.perf_counter()  # the session's clock: perf_counter + epoch
-    t_tracked, x_tracked = track(t_true + epoch, x_true, noise, seed)
-    files["tracker"] = write_tracker_file(folder / "tracker.csv", t_tracked, x_tracked)
-    joined = join(run.encoder_log, files["tracker"], files["windows"])
-    files["measurements"] = write_measurements(
-        folder / "measurements.csv", joined.poses, joined.readings
-    )
-    data = read_measurements(files["measurements"], counts)
-    ident = identify(geometry, data.poses, data.readings, noise, tolerances)
-    files["robot"] = write_identified(
-        folder / "robot.yaml",
-        robot_section(built.robot, geometry),
-        ident,
-        files["measurements"],
+    joined, ident = _calibrate_from_files(
+        folder, files, built, geometry, t_true + epoch, x_true, noise, tolerances, seed, counts
     )
     # The join's own error: the true pose averaged over each window, the as-built readings there.
     true_mean = np.array([_mean_between(t_true + epoch, x_true, w) for w in joined.windows])

@@ -388,6 +388,7 @@ def reproduce(
     result, learner, wall, learned = run(plan, None, progress, f"reproducing {name}")
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
+    quantum = 0.0 if scenario.hardware is None else scenario.hardware.encoders.quantum_rad
     return Reproduction(
         name=name,
         reference=reference,
@@ -403,9 +404,7 @@ def reproduce(
         startup=_startup(result, window),
         geometry=plan.geometry,
         plan=plan,
-        encoder_quantum_rad=0.0
-        if scenario.hardware is None
-        else scenario.hardware.encoders.quantum_rad,
+        encoder_quantum_rad=quantum,
         **_learning_record(scenario.learning, learn_cycles),
     )
 

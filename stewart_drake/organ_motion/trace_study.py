@@ -496,13 +496,28 @@ def tables(results: dict) -> str:
     return "\n".join(lines)
 
 
+def _style_panel(ax, case: str) -> None:
+    """One motion's panel of :func:`plot`: its title, the goal, the measured window's start, a
+    log scale of plain numbers (um)."""
+    import matplotlib.ticker
+
+    ax.set_title("\n".join(textwrap.wrap(case, 34)), fontsize=8)
+    ax.axhline(GOAL[0] * 1e6, color="tab:red", lw=0.8, ls="-.")
+    ax.axvline(MEASURED_FROM_S, color="k", lw=0.6, ls=":")
+    ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+    ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_yticks([1, 2, 5, 10, 20, 50])
+    ax.grid(True, which="both", alpha=0.3)
+    ax.tick_params(labelsize=7)
+
+
 def plot(results: dict, path) -> Path:
     """The figure of the study, one small panel per motion: the translation's RMS error over
     every :data:`WINDOW_S` without learning (both runs, grey), learning from zero (solid) and
     from the library's model (dashed), on each robot (a colour), with the goal (:data:`GOAL`)
     and the start of the measured window."""
     import matplotlib
-    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -542,15 +557,7 @@ def plot(results: dict, path) -> Path:
                 tone = "0.65" if mode.startswith("none") else colour
                 ax.plot(t, y, style, color=tone, lw=width)
     for case, ax in panel.items():
-        ax.set_title("\n".join(textwrap.wrap(case, 34)), fontsize=8)
-        ax.axhline(GOAL[0] * 1e6, color="tab:red", lw=0.8, ls="-.")
-        ax.axvline(MEASURED_FROM_S, color="k", lw=0.6, ls=":")
-        ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.set_yticks([1, 2, 5, 10, 20, 50])
-        ax.grid(True, which="both", alpha=0.3)
-        ax.tick_params(labelsize=7)
+        _style_panel(ax, case)
     for ax in axes.flat[len(panel) :]:
         ax.set_visible(False)
     for ax in axes[:, 0]:

@@ -228,17 +228,7 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
         if c[ADAPT] > 0.0 and abs(wl[i]) > c[ADAPT_MIN_RATE]:
             F += c[ADAPT] * h * friction_error(state, i_r + 4 * i, c[MEMORY], tau_fb, wl[i])
             state[i_f + i] = min(max(F, c[FRICTION_MIN]), c[FRICTION_MAX])
-        # the estimator's prediction with the command that acts over the next period
-        act = acc[i] if d == 0 else state[i_p + d * i]
-        for k in range(3):
-            s = Gam[k] * act
-            for m in range(3):
-                s += Phi[k, m] * x_hat[i, m]
-            state[3 * i + k] = s
-        for j in range(d - 1):
-            state[i_p + d * i + j] = state[i_p + d * i + j + 1]
-        if d > 0:
-            state[i_p + d * i + d - 1] = acc[i]
+        _predict(state, i, d, i_p, acc[i], Phi, Gam, x_hat)
     if saturated:
         state[i_s + 1] += 1.0
     for i in range(6):
@@ -247,6 +237,23 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
             s += J_inv[i, j] * (y[j] - th0[j])
         state[i_e + i] = s
     return True
+
+
+@_njit
+def _predict(state, i, d, i_p, acc_i, Phi, Gam, x_hat):
+    """Crank ``i``'s estimator prediction over the next period, with the command that acts
+    over it (``d`` periods late: the oldest of its delay line, which then takes ``acc_i``), in
+    ``state`` (:func:`step`'s)."""
+    act = acc_i if d == 0 else state[i_p + d * i]
+    for k in range(3):
+        s = Gam[k] * act
+        for m in range(3):
+            s += Phi[k, m] * x_hat[i, m]
+        state[3 * i + k] = s
+    for j in range(d - 1):
+        state[i_p + d * i + j] = state[i_p + d * i + j + 1]
+    if d > 0:
+        state[i_p + d * i + d - 1] = acc_i
 
 
 def warm_up() -> None:

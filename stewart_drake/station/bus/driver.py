@@ -146,16 +146,7 @@ class DynamixelBus(PositionMode):
         #: The surrogate's servo (None: none), its model and its settings: the cranks', with
         #: its own Current Limit.
         self.surrogate = surrogate
-        #: Every servo on the bus: the cranks' ids, then the surrogate's.
-        self.all_ids = list(ids)
-        self._specs = {i: self.spec for i in ids}
-        self._settings_of = {i: self.settings for i in ids}
-        if surrogate is not None:
-            s_spec, units, s_settings = surrogate_settings(surrogate, self.spec, ids, self.settings)
-            self.surrogate_spec, self.surrogate_limit_units = s_spec, units
-            self.all_ids.append(int(surrogate.id))
-            self._specs[int(surrogate.id)] = s_spec
-            self._settings_of[int(surrogate.id)] = s_settings
+        self._every_servo(ids, surrogate)
         self.read_times: collections.deque = collections.deque(maxlen=timing_window)
         self.write_times: collections.deque = collections.deque(maxlen=timing_window)
         #: Whether the last :meth:`torque_off` was confirmed by every servo.
@@ -166,6 +157,19 @@ class DynamixelBus(PositionMode):
         self._sdk = dynamixel_sdk()
         self._port = None
         self._packets = self._sdk.PacketHandler(2.0)
+
+    def _every_servo(self, ids, surrogate: SurrogateServoConfig | None) -> None:
+        """Every servo on the bus (:attr:`all_ids`: the cranks' ids, then the surrogate's), each
+        one's model and settings: the cranks', and the surrogate's own Current Limit."""
+        self.all_ids = list(ids)
+        self._specs = {i: self.spec for i in ids}
+        self._settings_of = {i: self.settings for i in ids}
+        if surrogate is not None:
+            s_spec, units, s_settings = surrogate_settings(surrogate, self.spec, ids, self.settings)
+            self.surrogate_spec, self.surrogate_limit_units = s_spec, units
+            self.all_ids.append(int(surrogate.id))
+            self._specs[int(surrogate.id)] = s_spec
+            self._settings_of[int(surrogate.id)] = s_settings
 
     @classmethod
     def from_config(
