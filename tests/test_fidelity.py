@@ -91,7 +91,7 @@ def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
     beside them (python tools/organ_motion_tables.py writes both; never edit them by hand)."""
     from pathlib import Path
 
-    from stewart_drake.organ_motion.fidelity_study import CASES, TABLE_MARKERS, tables
+    from stewart_drake.studies.fidelity_study import CASES, TABLE_MARKERS, tables
 
     docs = Path(__file__).resolve().parent.parent / "docs"
     figures = json.loads((docs / "organ_motion.json").read_text())

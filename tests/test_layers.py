@@ -39,6 +39,7 @@ LAYERS = {
     "design": 10,
     "live": 10,
     "verification": 10,
+    "studies": 10,
     "cli": 11,
 }
 #: Modules ranked apart from their package (a key of LAYERS): ``python -m stewart_drake`` is the

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.organ_motion.stream_sources import StreamForm
 from stewart_drake.organ_motion.streaming import MEASURE_STEP_S, stream_figures
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.references.prediction import (
@@ -18,6 +17,7 @@ from stewart_drake.references.prediction import (
     PredictorSettings,
 )
 from stewart_drake.references.stream import follow, stream_of
+from stewart_drake.studies.stream_sources import StreamForm
 
 RATE_HZ = 25.0
 

@@ -7,17 +7,17 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.organ_motion import stream_selection as sel
-from stewart_drake.organ_motion.stream_sources import (
+from stewart_drake.references.organ.library import make_motion
+from stewart_drake.references.stream import Stream, stream_of
+from stewart_drake.studies import stream_selection as sel
+from stewart_drake.studies.stream_sources import (
     Source,
     StreamForm,
     hurting,
     random_walk,
     sources,
 )
-from stewart_drake.organ_motion.stream_study import StreamCase
-from stewart_drake.references.organ.library import make_motion
-from stewart_drake.references.stream import Stream, stream_of
+from stewart_drake.studies.stream_study import StreamCase
 
 
 def _row(source, candidate, latency, rms, peak, case="m", judged=True):
@@ -312,7 +312,7 @@ def test_the_sources_hold_the_motions_and_forms_the_docs_name():
     """Each source's form in the words the table prints, and drawn from its own seed; the forms
     laid on the five breathing motions named; the irregular source's motions those of their
     labels' seed and variation (built here from the library by name); the library's 11."""
-    from stewart_drake.organ_motion.stream_study import case_reference
+    from stewart_drake.studies.stream_study import case_reference
 
     by = {s.name: s for s in sources(None)}
     assert list(by) == [
@@ -347,7 +347,7 @@ def test_the_sources_hold_the_motions_and_forms_the_docs_name():
 
 def _cycle_means(case, period_s, step_s=0.01):
     """X's mean over each whole period of the breathing, mm, from 0 s: its baseline."""
-    from stewart_drake.organ_motion.stream_study import case_reference
+    from stewart_drake.studies.stream_study import case_reference
 
     x = np.asarray(case_reference(case).evaluate(np.arange(0.0, 120.0, step_s))[0])[:, 3]
     n = int(round(period_s / step_s))
@@ -440,7 +440,7 @@ def test_the_forms_are_laid_on_the_motions_they_name():
     """Each form's base motion is the library's motion of that name and parameters (the
     heartbeat's breathing of 4.2 s, the irregular breathing of seed 3), and the breathing
     with 10 % outliers is the library's breathing."""
-    from stewart_drake.organ_motion.stream_study import case_reference
+    from stewart_drake.studies.stream_study import case_reference
 
     t = np.arange(0.0, 30.0, 0.05)
     cases = {c.label: c for c in next(s for s in sources(None) if s.name == "10 Hz").cases}

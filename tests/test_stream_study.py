@@ -4,8 +4,8 @@ numbers, against goals written out here, and refused for every figure that misse
 import numpy as np
 import pytest
 
-from stewart_drake.organ_motion import stream_study
-from stewart_drake.organ_motion.stream_study import StreamCase, judge, peak_ratio, verdicts
+from stewart_drake.studies import stream_study
+from stewart_drake.studies.stream_study import StreamCase, judge, peak_ratio, verdicts
 
 # A set that meets every goal, with margins written out: at 0.2 s the mean RMS ratio
 # (0.3 + 0.4 + 0.5) / 3 = 0.4 <= 0.5, the largest 0.5 <= 0.8, the largest peak ratio 1.05 <=

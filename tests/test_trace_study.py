@@ -2,8 +2,8 @@
 
 import pytest
 
-from stewart_drake.organ_motion import trace_study
 from stewart_drake.references.organ.library import LIBRARY
+from stewart_drake.studies import trace_study
 
 
 def _row(label, none, learned, robot=trace_study.ROBOTS[0][0], again=None, peak=None, gamma=None):

@@ -121,8 +121,8 @@ MODULES = {
         "tests/test_predictors.py",
     ),
     # The selection's choice and verdicts from rows written in the test, the forms' draws.
-    "stewart_drake/organ_motion/stream_selection.py": ("tests/test_stream_selection.py",),
-    "stewart_drake/organ_motion/stream_sources.py": ("tests/test_stream_selection.py",),
+    "stewart_drake/studies/stream_selection.py": ("tests/test_stream_selection.py",),
+    "stewart_drake/studies/stream_sources.py": ("tests/test_stream_selection.py",),
     # Not test_live_follow.py: it holds the live follower to this module's curves, which both
     # sides run mutated alike (its own weights' moves, the one thing it recomputes, are checked
     # against hand-written moves in test_stream_prediction.py); 8 s more for every survivor.

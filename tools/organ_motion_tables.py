@@ -1,5 +1,5 @@
-"""Run the fidelity study (stewart_drake.organ_motion.fidelity_study) and the trace study
-(stewart_drake.organ_motion.trace_study) and write their tables into docs/organ_motion.md; the raw
+"""Run the fidelity study (stewart_drake.studies.fidelity_study) and the trace study
+(stewart_drake.studies.trace_study) and write their tables into docs/organ_motion.md; the raw
 figures go to results/fidelity_study/results.json and results/trace_study/results.json.
 
     python tools/organ_motion_tables.py [--docs docs/organ_motion.md] [--jobs 2]
@@ -23,8 +23,8 @@ from pathlib import Path
 
 from stewart_drake.base.fileio import atomic_write, read_checked
 from stewart_drake.execution.runners import ProcessRunner
-from stewart_drake.organ_motion import trace_study
-from stewart_drake.organ_motion.fidelity_study import run_study, write_tables
+from stewart_drake.studies import trace_study
+from stewart_drake.studies.fidelity_study import run_study, write_tables
 
 
 def _read_results(path) -> dict:

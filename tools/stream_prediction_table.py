@@ -1,5 +1,5 @@
 """Measure the shipped stream predictor on every motion of the library and on IntERAct's
-patients' traces at 0.1-0.5 s of latency (stewart_drake.organ_motion.stream_study), and write
+patients' traces at 0.1-0.5 s of latency (stewart_drake.studies.stream_study), and write
 the tables into docs/organ_motion.md.
 
     python tools/stream_prediction_table.py --traces PATH/TO/IntERAct [--docs docs/organ_motion.md]
@@ -17,8 +17,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from stewart_drake.organ_motion import stream_study
 from stewart_drake.references.prediction import PredictorSettings
+from stewart_drake.studies import stream_study
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """Choose the stream predictor across sources, leaving each out in turn, show its fallback on
 motions where prediction cannot pay, and write the tables into docs/organ_motion.md
-(stewart_drake.organ_motion.stream_selection).
+(stewart_drake.studies.stream_selection).
 
     python tools/stream_selection_table.py [--traces PATH/TO/IntERAct] [--docs docs/organ_motion.md]
 
@@ -18,8 +18,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from stewart_drake.organ_motion import stream_selection, stream_sources
 from stewart_drake.references.prediction import DEFAULT_PREDICTOR, PredictorSettings
+from stewart_drake.studies import stream_selection, stream_sources
 
 
 def main() -> None:

@@ -150,7 +150,7 @@ class PredictorSettings:
 
     # The defaults: history, the record needed before use, the hysteresis, the envelope's window and
     # the outliers (off) are the choice across sources, each left out in turn (docs/organ_motion.md,
-    # "Chosen across sources", organ_motion/stream_selection.py); memory and ridge the earlier
+    # "Chosen across sources", studies/stream_selection.py); memory and ridge the earlier
     # tuning on the library's motions (memory 30-120 s within 0.005 of the mean ratio; a ridge of
     # 1e-6 beat 1e-3 by 0.05); the bound and the shrinkage "Choosing the predictor"'s. The other
     # models' settings were not tuned (one setting each, from their papers or ours).

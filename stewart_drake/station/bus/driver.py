@@ -159,7 +159,7 @@ class DynamixelBus(PositionMode):
         self._packets = self._sdk.PacketHandler(2.0)
 
     def _every_servo(self, ids, surrogate: SurrogateServoConfig | None) -> None:
-        """Every servo on the bus (:attr:`all_ids`: the cranks' ids, then the surrogate's), each
+        """Every servo on the bus (``all_ids``: the cranks' ids, then the surrogate's), each
         one's model and settings: the cranks', and the surrogate's own Current Limit."""
         self.all_ids = list(ids)
         self._specs = {i: self.spec for i in ids}
