@@ -58,6 +58,35 @@ FOLLOWS_CORRELATION = 0.5
 PERIOD_SHARE = 0.05
 
 
+#: A measured axis whose sign reversed matches its reference this many times better (the least
+#: mean squared distance at its best shift, :func:`reversed_match`) runs the wrong way.
+REVERSED_RATIO = 0.25
+
+#: The criteria a measured axis along which the reference moves is judged by, in the order
+#: :func:`moving_axis_cause` tries them, one list for a motion judged alone (:func:`causes_of`)
+#: and with its surrogate (:func:`~stewart_drake.verification.pair_causes.why_not_following`):
+#: (name, what it compares, its threshold in words). Each place writes its own words for it.
+CRITERIA = (
+    ("at rest", "the axis's RMS motion against the reference's", "below AT_REST_SHARE of it"),
+    ("runs against", "the axis's correlation with the reference's", "below -FOLLOWS_CORRELATION"),
+    (
+        "reversed",
+        "the axis reversed against as it is, each at its best shift (reversed_match)",
+        "nearer by more than 1 / REVERSED_RATIO",
+    ),
+    (
+        "another period",
+        "the axis's dominant period against the reference's",
+        "apart by more than PERIOD_SHARE",
+    ),
+    (
+        "not following",
+        "the axis's correlation with the reference's",
+        "not above FOLLOWS_CORRELATION",
+    ),
+)
+
+
 #: The largest further shift searched with a turn of the measured axes, s (half a breath).
 TURN_SEARCH_S = 2.5
 
@@ -210,6 +239,43 @@ def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float
     return (flipped / as_is if as_is > 0 else math.inf), delta
 
 
+def moving_axis_cause(
+    t, x, k: int, fk: dict, reference, check_rest: bool = True
+) -> tuple[str | None, tuple[float, float]]:
+    """The first of :data:`CRITERIA` that the measured axis ``k`` (a column of ``x`` (n, 6) at
+    the times ``t`` (n,), s, the reference's clock) fails, in their order, or None when it
+    follows its reference.
+
+    Args:
+        fk: the axis's :func:`axis_figures`. reference: the reference (None: the reversed
+            criterion is not tried). check_rest: whether "at rest" is tried (the pair judges its
+            rest over every axis at once).
+    Returns:
+        (the criterion's name or None, (ratio, delta s) of :func:`reversed_match` for
+        "reversed", NaN otherwise).
+    """
+    rho = fk["correlation"]
+    if check_rest and fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"]:
+        return "at rest", (math.nan, math.nan)
+    if rho < -FOLLOWS_CORRELATION:
+        return "runs against", (math.nan, math.nan)
+    if reference is not None:
+        period = getattr(reference, "repeat_period_s", None) or 4.0
+        ratio, delta = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
+        if ratio < REVERSED_RATIO:
+            return "reversed", (ratio, delta)
+    own, ref_period = fk["period_s"], fk["reference_period_s"]
+    if (
+        math.isfinite(own)
+        and math.isfinite(ref_period)
+        and abs(own / ref_period - 1.0) > PERIOD_SHARE
+    ):
+        return "another period", (math.nan, math.nan)
+    if not rho > FOLLOWS_CORRELATION:
+        return "not following", (math.nan, math.nan)
+    return None, (math.nan, math.nan)
+
+
 def causes_of(
     t,
     x,
@@ -278,45 +344,37 @@ def _moving_axes_causes(t, x, f, moving_seen, tol, reference, latency_s) -> tupl
     period, not following, another amplitude or shape."""
     causes: list[str] = []
     follows = True
-    period = getattr(reference, "repeat_period_s", None) or 4.0
     for k in moving_seen:
         a, fk = AXES[k], f[k]
         rho, gain = fk["correlation"], fk["gain"]
-        own, ref_period = fk["period_s"], fk["reference_period_s"]
-        other_period = (
-            math.isfinite(own)
-            and math.isfinite(ref_period)
-            and abs(own / ref_period - 1.0) > PERIOD_SHARE
-        )
-        if fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"]:
+        cause, (ratio, delta) = moving_axis_cause(t, x, k, fk, reference)
+        if cause == "at rest":
             causes.append(
                 f"{a} did not move ({axis_amount(k, fk['motion_rms'])} RMS where the reference "
                 f"moves {axis_amount(k, fk['reference_rms'])})"
             )
             follows = False
             continue
-        if reference is not None and not rho < -FOLLOWS_CORRELATION:
-            ratio, delta = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
-            if ratio < 0.25:
-                better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
-                causes.append(
-                    f"{a} runs the wrong way (reversed, it matches the reference {better}, at a "
-                    f"latency of {seconds(latency_s - delta)}): a sign flipped or the axis reversed"
-                )
-                follows = False
-                continue
-        follows = follows and rho > FOLLOWS_CORRELATION and not other_period
-        if rho < -FOLLOWS_CORRELATION:
+        if cause == "reversed":
+            better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
+            causes.append(
+                f"{a} runs the wrong way (reversed, it matches the reference {better}, at a "
+                f"latency of {seconds(latency_s - delta)}): a sign flipped or the axis reversed"
+            )
+            follows = False
+            continue
+        follows = follows and cause is None
+        if cause == "runs against":
             causes.append(
                 f"{a} runs the wrong way (correlation {rho:+.2f} with the reference, gain "
                 f"{gain:+.2f}): a sign flipped or the axis reversed"
             )
-        elif other_period:
+        elif cause == "another period":
             causes.append(
-                f"{a} repeats every {own:.3g} s where the reference does every "
-                f"{ref_period:.3g} s: another period"
+                f"{a} repeats every {fk['period_s']:.3g} s where the reference does every "
+                f"{fk['reference_period_s']:.3g} s: another period"
             )
-        elif not rho > FOLLOWS_CORRELATION:
+        elif cause == "not following":
             causes.append(
                 f"{a} does not follow the reference (correlation {rho:+.2f}): another motion, "
                 "or noise"
@@ -400,8 +458,11 @@ def _turn_said(angle: float, causes: list, moving_seen: list) -> bool:
 
 __all__ = [
     "AT_REST_SHARE",
+    "CRITERIA",
     "FOLLOWS_CORRELATION",
     "PERIOD_SHARE",
+    "REVERSED_RATIO",
+    "moving_axis_cause",
     "axis_figures",
     "causes_of",
     "reversed_match",

@@ -10,19 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from ..organ_motion.fidelity import AXES, MOVING_P2P
-from .causes import (
-    AT_REST_SHARE,
-    FOLLOWS_CORRELATION,
-    PERIOD_SHARE,
-    axis_figures,
-    reversed_match,
-)
+from .causes import AT_REST_SHARE, axis_figures, moving_axis_cause
 from .verdict_notes import seconds
 
-#: A measured axis whose sign reversed matches its reference this many times better (least mean
-#: squared distance, at its best shift) runs the wrong way (as
-#: :func:`~stewart_drake.verification.causes.causes_of` says it).
-REVERSED_RATIO = 0.25
 #: Two measurements are swapped when each one's mean squared distance (each less its mean) to the
 #: other's reference is under this share of its distance to its own: 4 times nearer the other's.
 SWAPPED_RATIO = 0.25
@@ -44,13 +34,12 @@ def why_not_following(reference, t, x, x_d, measured) -> str | None:
     """None when the measured motion follows its reference (so that its clock means something),
     else why not, in words: at rest (every measured axis along which the reference moves moved
     less than :data:`~stewart_drake.verification.causes.AT_REST_SHARE` of it, RMS, as
-    ``verify``'s verdict says it: against the reference's own motion, not the tolerance),
-    reversed
-    (an axis's correlation below -:data:`~stewart_drake.verification.measured_verdict.
-    FOLLOWS_CORRELATION`, or its sign reversed matching :data:`REVERSED_RATIO` times better at
-    another shift), another period, or not following (correlation within
-    +-:data:`~stewart_drake.verification.causes.FOLLOWS_CORRELATION`). A scale or a
-    shape error does not stop the clock meaning something: the fidelity's verdict judges those.
+    ``verify``'s verdict says it: against the reference's own motion, not the tolerance), then
+    the first of the single motion's criteria an axis fails
+    (:data:`~stewart_drake.verification.causes.CRITERIA`, through
+    :func:`~stewart_drake.verification.causes.moving_axis_cause`, the one list of them): runs
+    against its reference, reversed, another period, not following. A scale or a shape error
+    does not stop the clock meaning something: the fidelity's verdict judges those.
 
     Args:
         reference: the reference. t: (n,) s, the reference's clock. x, x_d: (n, 6) the aligned
@@ -71,25 +60,24 @@ def why_not_following(reference, t, x, x_d, measured) -> str | None:
             for k in axes
         )
         return f"did not move ({moved})"
-    period = getattr(reference, "repeat_period_s", None) or 4.0
     for k in axes:
         fk = f[AXES[k]]
         rho = fk["correlation"]
-        if rho < -FOLLOWS_CORRELATION:
+        cause, (ratio, _) = moving_axis_cause(t, x, k, fk, reference, check_rest=False)
+        if cause == "runs against":
             return f"runs the wrong way on {AXES[k]} (correlation {rho:+.2f} with its reference)"
-        ratio, _ = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
-        if ratio < REVERSED_RATIO:
+        if cause == "reversed":
             better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
             return (
                 f"runs the wrong way on {AXES[k]} (reversed, it matches its reference {better}): "
                 "a sign flipped or the axis reversed"
             )
-        own, ref = fk["period_s"], fk["reference_period_s"]
-        if math.isfinite(own) and math.isfinite(ref) and abs(own / ref - 1.0) > PERIOD_SHARE:
+        if cause == "another period":
+            own, ref = fk["period_s"], fk["reference_period_s"]
             return (
                 f"repeats every {own:.3g} s on {AXES[k]} where its reference does every {ref:.3g} s"
             )
-        if not rho > FOLLOWS_CORRELATION:
+        if cause == "not following":
             return (
                 f"does not follow its reference on {AXES[k]} (correlation {rho:+.2f}): another "
                 "motion, or noise"
@@ -215,7 +203,6 @@ def _played_words(ratios: list, names: tuple) -> str | None:
 
 
 __all__ = [
-    "REVERSED_RATIO",
     "SWAPPED_RATIO",
     "PLAYED_RATIO",
     "SWAP_SEARCH_S",
