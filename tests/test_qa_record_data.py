@@ -79,6 +79,7 @@ def verification(
             latency_judged=True,
             line=f"{verdict}: the line",
             causes=("a cause",) if verdict == "FAIL" else (),
+            tolerance=TOL,
         ),
         measured=motion(kind, bus, measured),
         latency_s=latency_s,
@@ -102,7 +103,8 @@ def rms_of(**axes):
 
 
 def data(ver, context=None, tolerance=TOL):
-    return results_data(ver, tolerance, context or RecordContext(), WHEN)
+    ver.judgement.tolerance = tolerance  # the record reads the verdict's own
+    return results_data(ver, context or RecordContext(), WHEN)
 
 
 def test_every_figure_is_in_the_unit_its_name_says():
@@ -404,13 +406,13 @@ def drawn(monkeypatch):
 
     monkeypatch.setattr(qa_record, "record_pdf", pdf)
     monkeypatch.setattr(qa_record, "_reportlab", lambda: None)  # the stand-in needs none
-    monkeypatch.setattr(qa_record_figure, "record_figure", lambda ver, tol, act: b"png")
+    monkeypatch.setattr(qa_record_figure, "record_figure", lambda ver: b"png")
     return made
 
 
 def test_a_record_is_its_pdf_then_its_json(tmp_path, drawn):
     ver = verification(rms_of(X=0.05))
-    pdf, js = qa_record.write_record(ver, tmp_path / "out", TOL, RecordContext(), "verify_b")
+    pdf, js = qa_record.write_record(ver, tmp_path / "out", RecordContext(), "verify_b")
     assert pdf.parent == js.parent == tmp_path / "out" / "records"
     assert re.fullmatch(r"verify_b_\d{8}T\d{6}\.pdf", pdf.name) and js.name == pdf.stem + ".json"
     assert drawn["path"] == pdf and drawn["figure"] == b"png" and drawn["json_then"] == b""
@@ -427,7 +429,7 @@ def test_an_interrupted_record_leaves_neither_file(tmp_path, monkeypatch, drawn,
 
     monkeypatch.setattr(qa_record, "record_pdf", broken)
     with pytest.raises(interrupt):
-        qa_record.write_record(verification(np.zeros(6)), tmp_path, TOL, RecordContext(), "v")
+        qa_record.write_record(verification(np.zeros(6)), tmp_path, RecordContext(), "v")
     assert list((tmp_path / "records").iterdir()) == []
 
 
@@ -436,5 +438,5 @@ def test_a_record_without_reportlab_names_the_extra_and_writes_nothing(tmp_path,
 
     monkeypatch.setitem(sys.modules, "reportlab", None)  # import reportlab raises ImportError
     with pytest.raises(MissingExtraError, match=r'pip install -e "\.\[qa\]"'):
-        qa_record.write_record(verification(np.zeros(6)), tmp_path, TOL, RecordContext(), "v")
+        qa_record.write_record(verification(np.zeros(6)), tmp_path, RecordContext(), "v")
     assert not (tmp_path / "records").exists()

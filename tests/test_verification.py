@@ -898,3 +898,21 @@ def test_a_frame_is_an_outlier_only_beyond_five_tolerances(size_mm, flagged):
     assert (ver.outliers["frames"] == 1) is flagged
     assert ("frames compared are outliers" in ver.judgement.line) is flagged
     assert ver.judgement.passed  # one frame in 1000 moves the RMS by ~size / 31
+
+
+def test_the_result_carries_the_tolerance_it_was_judged_at_and_its_report_states_it(tmp_path):
+    """The verdict's tolerance travels with the result: the page, the figure's JSON and the
+    record read it from there, none is given it again. 0.25 mm | 0.3 deg, a tolerance no
+    default holds: the page states it and the JSON's verdict is the one judged at it."""
+    from stewart_drake.verification.report import verification_markdown, write_verification
+
+    t, x = run()
+    measured = MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ)
+    wide = (2.5e-4, math.radians(0.3))
+    ver = verify(MOTION, measured, clock_offset_s=CLOCK_OFFSET_S, tolerance=wide)
+    assert ver.tolerance == pytest.approx(wide, rel=1e-15)
+    assert ver.judgement.tolerance == pytest.approx(wide, rel=1e-15)
+    assert "0.25 mm | 0.3 deg" in verification_markdown(ver)
+    md, _, _ = write_verification(ver, tmp_path, "v")
+    assert "0.25 mm | 0.3 deg" in md.read_text()
+    assert "0.1 mm | 0.1 deg" not in md.read_text()

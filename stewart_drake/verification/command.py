@@ -289,7 +289,7 @@ def cmd_verify(args) -> int:
             action_level=action_level,
         )
         replaced = _earlier_verdict(out / f"{stem}.json")
-        md, png, js = write_verification(ver, out, tolerance, stem)
+        md, png, js = write_verification(ver, out, stem)
         print(ver.judgement.line)
         print(_summary(ver))
         print(f"wrote {md}, {png} and {js}" + (f" (replacing {replaced})" if replaced else ""))
@@ -304,7 +304,6 @@ def cmd_verify(args) -> int:
             pdf, record = write_record(
                 ver,
                 out,
-                tolerance,
                 replace(
                     context,
                     inputs=tuple(inputs),

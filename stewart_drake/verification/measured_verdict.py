@@ -39,6 +39,7 @@ that cannot see a 3 % scale error says so before anyone relies on it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -86,6 +87,8 @@ class Judgement:
         action_level: (m, rad) the action level judged against, or None.
         action: {axis: RMS error, m or rad} of the measured axes within the tolerance but
             beyond the action level (empty without one).
+        tolerance: (m, rad) the tolerance judged against: what the report, the figure and
+            the record state beside the verdict, read from here.
     """
 
     passed: bool
@@ -98,6 +101,7 @@ class Judgement:
     cannot_judge: str = ""
     action_level: tuple | None = None
     action: dict = field(default_factory=dict)
+    tolerance: tuple = (math.nan, math.nan)
 
     @property
     def verdict(self) -> str:
@@ -236,6 +240,7 @@ def judge(ver, tolerance: tuple[float, float], action_level=None) -> Judgement:
         unseen,
         action_level,
         action,
+        (float(tolerance[0]), float(tolerance[1])),
     )
 
 

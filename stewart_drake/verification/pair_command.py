@@ -309,7 +309,7 @@ def cmd_verify_pair(args) -> int:
         tolerance=tolerance,
         max_gap_s=args.measured_max_gap,
     )
-    written = write_pair(pair, out, tolerance, stems)
+    written = write_pair(pair, out, stems)
     print(pair.internal.judgement.line)
     print(pair.surrogate.judgement.line)
     print(pair.judgement.line)

@@ -66,7 +66,7 @@ def pair_markdown(pair: PairVerification) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_pair(pair: PairVerification, out, tolerance, stems) -> list:
+def write_pair(pair: PairVerification, out, stems) -> list:
     """Write each motion's report (as ``verify`` does: ``<stem>.md|.png|.json``) and the
     pair's ``<stem>.md`` (:func:`pair_markdown`) and ``<stem>.json``
     (:meth:`PairVerification.as_dict`) into ``out``, the stems (internal, surrogate, pair).
@@ -80,8 +80,8 @@ def write_pair(pair: PairVerification, out, tolerance, stems) -> list:
     from .report import write_verification
 
     out = Path(out)
-    written = [*write_verification(pair.internal, out, tolerance, stems[0])]
-    written += write_verification(pair.surrogate, out, tolerance, stems[1])
+    written = [*write_verification(pair.internal, out, stems[0])]
+    written += write_verification(pair.surrogate, out, stems[1])
     md, js = out / f"{stems[2]}.md", out / f"{stems[2]}.json"
     text = pair_markdown(pair)
     atomic_write(md, lambda f: f.write(text.encode()))

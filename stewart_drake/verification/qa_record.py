@@ -193,7 +193,7 @@ def emulated(measured) -> bool | None:
     return measured.bus.startswith(EMULATED_BUS)
 
 
-def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict:
+def results_data(ver, context: RecordContext, when: datetime) -> dict:
     """The record's values as JSON, each under a name a QATrack+ test's macro can take
     (letters, digits and underscores): ``verdict``, ``passed``, ``tolerance_mm`` /
     ``tolerance_deg``, ``action_mm`` / ``action_deg`` (None without), ``rms_<axis>_mm`` or
@@ -207,7 +207,7 @@ def results_data(ver, tolerance, context: RecordContext, when: datetime) -> dict
     ``scenario`` (the phantom; "" when the run names none), ``phantom_serial``, ``operator``,
     ``notes``, ``date``, ``software``), the judgement's ``line`` and ``causes``, and ``schema``
     (:data:`RECORD_SCHEMA`)."""
-    fid = ver.fidelity
+    fid, tolerance = ver.fidelity, ver.judgement.tolerance
     levels = axis_levels(ver, tolerance)
     action = ver.judgement.action_level
     device, independent = device_words(ver.measured)
@@ -310,15 +310,16 @@ def _exclusive(folder: Path, stem: str, suffixes: tuple) -> tuple:
     )
 
 
-def write_record(ver, out, tolerance, context: RecordContext, stem: str) -> tuple:
+def write_record(ver, out, context: RecordContext, stem: str) -> tuple:
     """Write the QA record of a verification into ``out/records``: ``<stem>_<time>.pdf``
     (:func:`record_pdf`, its plots drawn from ``ver`` by
     :func:`~.qa_record_figure.record_figure`) and ``<stem>_<time>.json``
     (:func:`results_data`), never over an earlier one (module docstring).
 
     Args:
-        ver: the :class:`~.verify.Verification`. out: the output folder. tolerance:
-            (m, rad). context: :class:`RecordContext`. stem: the report's stem.
+        ver: the :class:`~.verify.Verification` (its judgement's tolerance and action level
+            are the record's). out: the output folder. context: :class:`RecordContext`.
+            stem: the report's stem.
     Returns:
         (pdf path, json path).
     Raises:
@@ -329,8 +330,8 @@ def write_record(ver, out, tolerance, context: RecordContext, stem: str) -> tupl
 
     _reportlab()
     when = datetime.now().astimezone()
-    data = results_data(ver, tolerance, context, when)
-    figure = record_figure(ver, tolerance, ver.judgement.action_level)
+    data = results_data(ver, context, when)
+    figure = record_figure(ver)
     pdf, js = _exclusive(Path(out) / "records", f"{stem}_{when:%Y%m%dT%H%M%S}", (".pdf", ".json"))
     try:  # the PDF first: a JSON saying PASS never stands beside an empty or cut PDF
         record_pdf(pdf, data, figure)

@@ -126,12 +126,12 @@ def _plot_gamma(ax, t, x, x_d, measured) -> float | None:
     return rate
 
 
-def record_figure(ver, tolerance, action_level=None) -> bytes:
+def record_figure(ver) -> bytes:
     """The record's plots as PNG bytes at :data:`DPI` (module docstring).
 
     Args:
-        ver: the :class:`~.verify.Verification`. tolerance, action_level: (m, rad);
-            action_level may be None.
+        ver: the :class:`~.verify.Verification`: its judgement's tolerance and action level
+            (m, rad; the action level may be None) are drawn beside each axis.
     Returns:
         the PNG's bytes.
     """
@@ -142,6 +142,7 @@ def record_figure(ver, tolerance, action_level=None) -> bytes:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    tolerance, action_level = ver.judgement.tolerance, ver.judgement.action_level
     measured = np.asarray(ver.measured.measured, dtype=bool)
     axes_k = [int(k) for k in np.flatnonzero(measured)]
     t, x, x_d = judged_window(ver)

@@ -15,13 +15,13 @@ from .verdict_sensitivity import sensitivity_words
 from .verify import Verification, seconds
 
 
-def verification_markdown(ver: Verification, tolerance: tuple[float, float]) -> str:
+def verification_markdown(ver: Verification) -> str:
     """The Markdown page of a measured motion: the verdict (what it compares) and its causes,
     what was measured and against what, what the check can see, the latency, what the alignment
     removed, then the figures (per axis, gamma, harmonics, cycles, the start-up, the phantom
     anchor) as a reproduction's report gives them."""
     fid = ver.fidelity
-    judgement = ver.judgement
+    judgement, tolerance = ver.judgement, ver.tolerance
     source = ver.reference
     info = getattr(source, "info", None) or getattr(
         getattr(source, "reference", None), "info", None
@@ -96,9 +96,7 @@ def verification_figures(ver: Verification) -> dict:
     }
 
 
-def write_verification(
-    ver: Verification, out, tolerance: tuple[float, float], stem: str
-) -> tuple[Path, Path, Path]:
+def write_verification(ver: Verification, out, stem: str) -> tuple[Path, Path, Path]:
     """Write ``<stem>.md``, ``<stem>.png`` and ``<stem>.json`` into ``out``: the page of
     :func:`verification_markdown`, the reproduction's figure
     (:func:`~.fidelity_figure.plot_report`) and its JSON with :func:`verification_figures`
@@ -110,9 +108,9 @@ def write_verification(
     return write_report(
         ver,
         out,
-        tolerance,
+        ver.tolerance,
         stem,
-        text=verification_markdown(ver, tolerance),
+        text=verification_markdown(ver),
         extra=verification_figures(ver),
     )
 

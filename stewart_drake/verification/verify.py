@@ -194,6 +194,11 @@ class Verification:
         """(0, 0): the measured pose's resolution is the instrument's, not known here."""
         return (0.0, 0.0)
 
+    @property
+    def tolerance(self) -> tuple[float, float]:
+        """(m, rad) the tolerance its verdict was judged at (:attr:`judgement`'s)."""
+        return self.judgement.tolerance
+
 
 def _samples(
     t: np.ndarray, max_gap_s: float, pauses: bool = False, pausable: bool = True
