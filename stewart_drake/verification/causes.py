@@ -28,6 +28,9 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -61,31 +64,6 @@ PERIOD_SHARE = 0.05
 #: A measured axis whose sign reversed matches its reference this many times better (the least
 #: mean squared distance at its best shift, :func:`reversed_match`) runs the wrong way.
 REVERSED_RATIO = 0.25
-
-#: The criteria a measured axis along which the reference moves is judged by, in the order
-#: :func:`moving_axis_cause` tries them, one list for a motion judged alone (:func:`causes_of`)
-#: and with its surrogate (:func:`~stewart_drake.verification.pair_causes.why_not_following`):
-#: (name, what it compares, its threshold in words). Each place writes its own words for it.
-CRITERIA = (
-    ("at rest", "the axis's RMS motion against the reference's", "below AT_REST_SHARE of it"),
-    ("runs against", "the axis's correlation with the reference's", "below -FOLLOWS_CORRELATION"),
-    (
-        "reversed",
-        "the axis reversed against as it is, each at its best shift (reversed_match)",
-        "nearer by more than 1 / REVERSED_RATIO",
-    ),
-    (
-        "another period",
-        "the axis's dominant period against the reference's",
-        "apart by more than PERIOD_SHARE",
-    ),
-    (
-        "not following",
-        "the axis's correlation with the reference's",
-        "not above FOLLOWS_CORRELATION",
-    ),
-)
-
 
 #: The largest further shift searched with a turn of the measured axes, s (half a breath).
 TURN_SEARCH_S = 2.5
@@ -239,41 +217,138 @@ def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float
     return (flipped / as_is if as_is > 0 else math.inf), delta
 
 
-def moving_axis_cause(
-    t, x, k: int, fk: dict, reference, check_rest: bool = True
-) -> tuple[str | None, tuple[float, float]]:
-    """The first of :data:`CRITERIA` that the measured axis ``k`` (a column of ``x`` (n, 6) at
-    the times ``t`` (n,), s, the reference's clock) fails, in their order, or None when it
-    follows its reference.
+@dataclass(frozen=True)
+class AxisCase:
+    """What a criterion reads of one measured axis along which the reference moves.
 
-    Args:
-        fk: the axis's :func:`axis_figures`. reference: the reference (None: the reversed
-            criterion is not tried). check_rest: whether "at rest" is tried (the pair judges its
-            rest over every axis at once).
-    Returns:
-        (the criterion's name or None, (ratio, delta s) of :func:`reversed_match` for
-        "reversed", NaN otherwise).
+    Attributes:
+        t: (n,) s, the reference's clock. x: (n, 6) the aligned measured poses. k: the axis's
+            index. fk: its :func:`axis_figures`. reference: the reference, or None (criteria
+            that need it pass).
     """
-    rho = fk["correlation"]
-    if check_rest and fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"]:
-        return "at rest", (math.nan, math.nan)
-    if rho < -FOLLOWS_CORRELATION:
-        return "runs against", (math.nan, math.nan)
-    if reference is not None:
-        period = getattr(reference, "repeat_period_s", None) or 4.0
-        ratio, delta = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
-        if ratio < REVERSED_RATIO:
-            return "reversed", (ratio, delta)
-    own, ref_period = fk["period_s"], fk["reference_period_s"]
-    if (
+
+    t: np.ndarray
+    x: np.ndarray
+    k: int
+    fk: dict
+    reference: Any
+
+
+@dataclass(frozen=True)
+class Criterion:
+    """A criterion a measured axis along which the reference moves is judged by.
+
+    Attributes:
+        name: its name: the key under which each place that judges writes its words.
+        compares: what it compares, in words. threshold: what fails, in words.
+        fails: ``fails(case)`` (an :class:`AxisCase`): None when the axis meets it, else the
+            figures its words take (a tuple, maybe empty).
+    """
+
+    name: str
+    compares: str
+    threshold: str
+    fails: Callable[[AxisCase], tuple | None]
+
+    def words(self, axis: str) -> str:
+        """Its words where a place has none of its own: "<axis> fails <name> (<compares>:
+        <threshold>)"."""
+        return f"{axis} fails {self.name} ({self.compares}: {self.threshold})"
+
+
+def _at_rest(case: AxisCase) -> tuple | None:
+    fk = case.fk
+    return () if fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"] else None
+
+
+def _runs_against(case: AxisCase) -> tuple | None:
+    return () if case.fk["correlation"] < -FOLLOWS_CORRELATION else None
+
+
+def _reversed(case: AxisCase) -> tuple | None:
+    if case.reference is None:
+        return None
+    period = getattr(case.reference, "repeat_period_s", None) or 4.0
+    ratio, delta = reversed_match(
+        case.t, case.x[:, case.k], case.k, case.reference, min(0.5 * period, 2.0)
+    )
+    return (ratio, delta) if ratio < REVERSED_RATIO else None
+
+
+def _another_period(case: AxisCase) -> tuple | None:
+    own, ref_period = case.fk["period_s"], case.fk["reference_period_s"]
+    apart = (
         math.isfinite(own)
         and math.isfinite(ref_period)
         and abs(own / ref_period - 1.0) > PERIOD_SHARE
-    ):
-        return "another period", (math.nan, math.nan)
-    if not rho > FOLLOWS_CORRELATION:
-        return "not following", (math.nan, math.nan)
-    return None, (math.nan, math.nan)
+    )
+    return () if apart else None
+
+
+def _not_following(case: AxisCase) -> tuple | None:
+    return () if not case.fk["correlation"] > FOLLOWS_CORRELATION else None
+
+
+#: The criteria a measured axis along which the reference moves is judged by, in the order
+#: :func:`moving_axis_cause` tries them: the one list for a motion judged alone
+#: (:func:`causes_of`) and with its surrogate
+#: (:func:`~stewart_drake.verification.pair_causes.why_not_following`), and the one place a
+#: criterion is added (docs/development.md, "Where a maintainer adds a thing"). Each place writes
+#: its own words for the criteria it knows, and :meth:`Criterion.words` for one it does not.
+CRITERIA: list[Criterion] = [
+    Criterion(
+        "at rest", "its RMS motion against the reference's", "below AT_REST_SHARE of it", _at_rest
+    ),
+    Criterion(
+        "runs against",
+        "its correlation with the reference",
+        "below -FOLLOWS_CORRELATION",
+        _runs_against,
+    ),
+    Criterion(
+        "reversed",
+        "it reversed against as it is, each at its best shift (reversed_match)",
+        "nearer by more than 1 / REVERSED_RATIO",
+        _reversed,
+    ),
+    Criterion(
+        "another period",
+        "its dominant period against the reference's",
+        "apart by more than PERIOD_SHARE",
+        _another_period,
+    ),
+    Criterion(
+        "not following",
+        "its correlation with the reference",
+        "not above FOLLOWS_CORRELATION",
+        _not_following,
+    ),
+]
+
+
+def moving_axis_cause(
+    t, x, k: int, fk: dict, reference, skip: tuple = ()
+) -> tuple[Criterion | None, tuple]:
+    """The first of :data:`CRITERIA` (its names in ``skip`` left out) that the measured axis
+    ``k`` fails, in their order, or None when it follows its reference.
+
+    Args:
+        t: (n,) s, the reference's clock. x: (n, 6) the aligned measured poses. k: the axis.
+        fk: the axis's :func:`axis_figures`. reference: the reference (None: the reversed
+            criterion is not tried). skip: criteria not tried (the pair judges "at rest" over
+            every axis at once).
+    Returns:
+        (the :class:`Criterion` failed, or None; the figures its words take: (ratio, delta s)
+        of :func:`reversed_match` for "reversed", () for the others).
+    """
+    case = AxisCase(t, x, k, fk, reference)
+    for criterion in CRITERIA:
+        if criterion.name in skip:
+            continue
+        figures = criterion.fails(case)
+        if figures is not None:
+            return criterion, figures
+    return None, ()
 
 
 def causes_of(
@@ -347,7 +422,8 @@ def _moving_axes_causes(t, x, f, moving_seen, tol, reference, latency_s) -> tupl
     for k in moving_seen:
         a, fk = AXES[k], f[k]
         rho, gain = fk["correlation"], fk["gain"]
-        cause, (ratio, delta) = moving_axis_cause(t, x, k, fk, reference)
+        criterion, figures = moving_axis_cause(t, x, k, fk, reference)
+        cause = None if criterion is None else criterion.name
         if cause == "at rest":
             causes.append(
                 f"{a} did not move ({axis_amount(k, fk['motion_rms'])} RMS where the reference "
@@ -356,6 +432,7 @@ def _moving_axes_causes(t, x, f, moving_seen, tol, reference, latency_s) -> tupl
             follows = False
             continue
         if cause == "reversed":
+            ratio, delta = figures
             better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
             causes.append(
                 f"{a} runs the wrong way (reversed, it matches the reference {better}, at a "
@@ -379,6 +456,8 @@ def _moving_axes_causes(t, x, f, moving_seen, tol, reference, latency_s) -> tupl
                 f"{a} does not follow the reference (correlation {rho:+.2f}): another motion, "
                 "or noise"
             )
+        elif criterion is not None:  # a criterion without words of its own here
+            causes.append(criterion.words(a))
         else:
             if abs(gain - 1.0) * fk["reference_rms"] > 0.5 * tol[k]:
                 causes.append(f"{a} moves {gain:.3g}x the reference's amplitude")
@@ -458,7 +537,9 @@ def _turn_said(angle: float, causes: list, moving_seen: list) -> bool:
 
 __all__ = [
     "AT_REST_SHARE",
+    "AxisCase",
     "CRITERIA",
+    "Criterion",
     "FOLLOWS_CORRELATION",
     "PERIOD_SHARE",
     "REVERSED_RATIO",

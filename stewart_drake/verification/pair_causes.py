@@ -63,10 +63,12 @@ def why_not_following(reference, t, x, x_d, measured) -> str | None:
     for k in axes:
         fk = f[AXES[k]]
         rho = fk["correlation"]
-        cause, (ratio, _) = moving_axis_cause(t, x, k, fk, reference, check_rest=False)
+        criterion, figures = moving_axis_cause(t, x, k, fk, reference, skip=("at rest",))
+        cause = None if criterion is None else criterion.name
         if cause == "runs against":
             return f"runs the wrong way on {AXES[k]} (correlation {rho:+.2f} with its reference)"
         if cause == "reversed":
+            ratio = figures[0]
             better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
             return (
                 f"runs the wrong way on {AXES[k]} (reversed, it matches its reference {better}): "
@@ -82,6 +84,8 @@ def why_not_following(reference, t, x, x_d, measured) -> str | None:
                 f"does not follow its reference on {AXES[k]} (correlation {rho:+.2f}): another "
                 "motion, or noise"
             )
+        if criterion is not None:  # a criterion without words of its own here
+            return criterion.words(AXES[k])
     return None
 
 

@@ -1,0 +1,82 @@
+"""Where a maintainer adds a thing (docs/development.md, "Where a maintainer adds a thing"):
+each test adds a small one at the one place named there and sees it reach the command line, in
+process, through the command a user types; none replaces the code it extends."""
+
+import numpy as np
+
+from stewart_drake.cli.main import main
+from stewart_drake.references.organ.library import make_motion
+from stewart_drake.verification import causes
+
+#: The measured motion: the library's breathing, played 1.5 times too large by a phantom whose
+#: tracker's axes are the base frame's (its offsets removed), 20 ms late.
+BREATHING = make_motion("breathing", {})
+SCALE, LATENCY_S = 1.5, 0.020
+
+
+def _measured_file(path):
+    t = np.arange(0.0, 30.0, 0.01)
+    x = BREATHING.evaluate(t - LATENCY_S)[0]
+    centre = x.mean(axis=0)
+    x = centre + SCALE * (x - centre)
+    rows = [f"{ti:.3f},{1e3 * p[3]:.5f},{1e3 * p[4]:.5f},{1e3 * p[5]:.5f}" for ti, p in zip(t, x)]
+    path.write_text("t [s],X [mm],Y [mm],Z [mm]\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def _verify(tmp_path, capsys) -> tuple[int, str]:
+    measured = _measured_file(tmp_path / "measured.csv")
+    code = main(["verify", "breathing", "--measured", str(measured), "--out", str(tmp_path / "o")])
+    return code, capsys.readouterr().out
+
+
+def test_a_verdict_criterion_added_to_the_one_list_reaches_verify(tmp_path, capsys, monkeypatch):
+    """A criterion appended to ``causes.CRITERIA`` (an axis moving more than 1.2 times the
+    reference's amplitude) is tried on every moving axis of a FAIL and its words, the
+    criterion's own (no place has words for it), are on verify's verdict line; without it the
+    same run names the amplitude through the stock words and not the new criterion."""
+    (tmp_path / "without").mkdir()
+    code, out = _verify(tmp_path / "without", capsys)
+    assert code == 2 and "FAIL" in out
+    assert "1.5x the reference's amplitude" in out
+    assert "fails too large" not in out
+    too_large = causes.Criterion(
+        "too large",
+        "its gain on the reference",
+        "above 1.2",
+        lambda case: () if case.fk["gain"] > 1.2 else None,
+    )
+    monkeypatch.setattr(causes, "CRITERIA", [*causes.CRITERIA, too_large])
+    (tmp_path / "with").mkdir()
+    code, out = _verify(tmp_path / "with", capsys)
+    assert code == 2
+    assert "fails too large (its gain on the reference: above 1.2)" in out
+    # The new criterion comes after the stock ones: the amplitude's stock words give way to it.
+    assert "1.5x the reference's amplitude" not in out
+
+
+def test_a_servo_model_added_to_its_two_tables_reaches_a_command(tmp_path, capsys, monkeypatch):
+    """A servo model is a row in the motor catalogue (its datasheet's torque, speed, gear,
+    rotor, mass, price: ``robot.motor_catalogue.MOTOR_CATALOGUE``) and a row in the bus's models
+    (its control table's units and limits: ``station.bus.servos.SERVO_SPECS``, its encoder's
+    counts read from the first). A made-up X servo of 5.0 N m stall torque at 2.3 A and 60 rpm
+    at no load, added to both, is what ``check paper_bus --set bus.model=...`` holds the
+    reference to: the torque the scenario's Current Limit lets it give, K_t = 5.0 / 2.3 N m/A
+    times the scenario's current_limit_A (under its 5.0 N m stall), and 60 rpm = 2 pi rad/s;
+    the shipped XM430's 3.57 N m and 4.82 rad/s are gone."""
+    from stewart_drake.robot import motor_catalogue
+    from stewart_drake.run.scenario_io import load_scenario
+    from stewart_drake.station.bus import servos
+
+    name = "XM430-EXAMPLE-T"
+    motor = motor_catalogue._dynamixel(name, 5.0, 60.0, 353.5, 1.0, 82.0, 300.0)
+    monkeypatch.setitem(motor_catalogue.MOTOR_CATALOGUE, name, motor)
+    monkeypatch.setitem(servos.SERVO_SPECS, name, servos._x_spec(name, 1020, 2.69e-3, 1193, 2.3))
+    code = main(["check", "paper_bus", "--set", f"bus.model={name}", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    current_limit_A = load_scenario("paper_bus").bus.current_limit_A
+    peak, speed = min(5.0, 5.0 / 2.3 * current_limit_A), 2 * np.pi
+    assert f"limit {0.9 * peak:.3g} N m, 90 % of the motors' {peak:.3g} N m peak" in out
+    assert f"limit {0.9 * speed:.3g} rad/s, 90 % of the motors' {speed:.3g} rad/s no-load" in out
+    assert "3.57 N m peak" not in out and "4.82 rad/s" not in out
