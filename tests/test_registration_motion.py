@@ -16,11 +16,11 @@ import pytest
 from harmonic_motion import Harmonics, rpy_matrix
 from scipy.spatial.transform import Rotation
 
+from stewart_drake.base import lag
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration.tracker import emulated_setup
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.geometry import StewartGeometry
-from stewart_drake.verification import alignment
 from stewart_drake.verification import registration_motion as rm
 from stewart_drake.verification.measured_motion import MeasuredMotion
 from stewart_drake.verification.registration_motion import (
@@ -238,12 +238,12 @@ def test_kabsch_finds_the_rotation_of_most_agreement():
     R_true = Rotation.from_rotvec([[0.3, -1.0, 0.5], [2.5, 0.1, -0.4]]).as_matrix()
     r = np.einsum("kab,knb->kna", R_true, y)
     H = np.einsum("kna,knb->kab", r, y)
-    R, score = alignment._kabsch(H)
+    R, score = lag._kabsch(H)
     np.testing.assert_allclose(R, R_true, atol=1e-12)
     np.testing.assert_allclose(score, np.sum(y * y, axis=(1, 2)), rtol=1e-12)
     # A mirrored set: the best rotation, not the mirror, and no rotation agrees more.
     H = np.einsum("na,nb->ab", -y[0] * [1, 1, 1], y[0])
-    R, score = alignment._kabsch(H)
+    R, score = lag._kabsch(H)
     assert np.linalg.det(R) == pytest.approx(1.0) and R @ R.T == pytest.approx(np.eye(3))
     assert score == pytest.approx(np.trace(R.T @ H), rel=1e-12)
     others = Rotation.random(2000, random_state=1).as_matrix()

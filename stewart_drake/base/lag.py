@@ -33,6 +33,12 @@ repeating reference's). The measured may be sampled unevenly (a camera's frames)
 coarse step puts it on the uniform grid (linearly interpolated); the refinement compares each
 sample at its own time. The reference is a function of time: a trajectory, a recorded trace, or
 a command's samples linearly interpolated (:func:`signal_lag`).
+
+**A turned frame** (:func:`rigid_shift`): where the measured positions are in a frame turned from
+the reference's (a tracker not yet registered), the score of a shift is taken after the best
+rotation at that shift (Kabsch), every shift at once by FFT: a registration motion's first clock
+(:mod:`stewart_drake.verification.registration_motion`) and a FAIL's test for turned axes
+(:mod:`stewart_drake.verification.causes`).
 """
 
 from __future__ import annotations
@@ -261,6 +267,48 @@ def signal_lag(
     return -d, math.sqrt(max(shift_score(t_in, y_in, weights, seen, d, offsets), 0.0))
 
 
+def _kabsch(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R (..., 3, 3), score (...,)): the rotations maximising tr(R^T H) of cross-covariances H
+    (..., 3, 3) (a sum of r y^T: R maps y onto r) and that maximum (Kabsch)."""
+    U, S, Vt = np.linalg.svd(H)
+    sign = np.sign(np.linalg.det(U @ Vt))
+    sign = np.where(sign == 0, 1.0, sign)
+    D = np.ones(S.shape)
+    D[..., 2] = sign
+    return (U * D[..., None, :]) @ Vt, np.sum(S * D, axis=-1)
+
+
+def rigid_shift(
+    t, y, positions: Callable, shifts: tuple[float, float], step_s: float
+) -> tuple[float, np.ndarray]:
+    """(d s, R (3, 3)): the shift in [shifts] (to ``step_s``) at which the measured positions
+    y (n, 3) at the times t (n,), s, turned by the best rotation at each shift and put on the
+    reference's centroid, come nearest the reference's positions (``positions(times)`` -> (m,
+    3)): the rotation-aware score of a shift, for a measured frame turned from the reference's
+    (a tracker's); every shift at once by FFT, the best rotation at each by Kabsch; and the
+    rotation at that shift (it maps y onto the reference's positions)."""
+    from scipy.signal import correlate
+
+    grid, ym = uniform_columns(t, y, step_s)
+    m = len(grid)
+    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
+    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
+    r = np.asarray(positions(grid[0] + shifts[0] + step_s * np.arange(m + count - 1)), float)
+    r = r - r.mean(axis=0)
+    ones = np.ones(m)
+    S_r = np.column_stack([correlate(r[:, b], ones, "valid") for b in range(3)])  # (K, 3)
+    S_rr = correlate(np.sum(r * r, axis=1), ones, "valid")
+    C = np.empty((count, 3, 3))  # C[k, b, a] = sum_i r[i + k, b] y[i, a]
+    for b in range(3):
+        for a in range(3):
+            C[:, b, a] = correlate(r[:, b], ym[:, a], "valid")
+    y0 = ym - ym.mean(axis=0)
+    R, score = _kabsch(C - S_r[:, :, None] * ym.mean(axis=0)[None, None, :])
+    ms = (np.sum(y0 * y0) + S_rr - np.sum(S_r * S_r, axis=1) / m - 2 * score) / m
+    k = int(np.argmin(ms))
+    return float(shifts[0] + k * step_s), np.array(R[k])
+
+
 __all__ = [
     "ROTATION_WEIGHT_M",
     "REFINE_SAMPLES",
@@ -270,6 +318,7 @@ __all__ = [
     "shift_score",
     "refine_shift",
     "best_shift",
+    "rigid_shift",
     "signal_lag",
     "inner_mask",
 ]

@@ -41,9 +41,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..base.columns import uniform_columns
 from ..base.errors import InvalidConfigError
 from ..base.lag import ROTATION_WEIGHT_M
+from ..base.lag import rigid_shift as lag_rigid_shift
 from ..organ_motion.fidelity import AXES, format_window
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
@@ -171,44 +171,17 @@ def axis_weights(measured) -> np.ndarray:
     return np.where(np.asarray(measured, dtype=bool), w, 0.0)
 
 
-def _kabsch(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(R (..., 3, 3), score (...,)): the rotations maximising tr(R^T H) of cross-covariances H
-    (..., 3, 3) (a sum of r y^T: R maps y onto r) and that maximum (Kabsch)."""
-    U, S, Vt = np.linalg.svd(H)
-    sign = np.sign(np.linalg.det(U @ Vt))
-    sign = np.where(sign == 0, 1.0, sign)
-    D = np.ones(S.shape)
-    D[..., 2] = sign
-    return (U * D[..., None, :]) @ Vt, np.sum(S * D, axis=-1)
-
-
 def rigid_shift(
     t, y, reference: Reference, shifts: tuple[float, float], step_s: float
 ) -> tuple[float, np.ndarray]:
     """(d s, R_BT (3, 3)): the shift in [shifts] (to ``step_s``) at which the measured
     positions y (n, 3), turned by the best rotation at each shift and put on the reference's
-    centroid, come nearest the reference's; the rotation at that shift (Kabsch, every shift at
-    once by FFT)."""
-    from scipy.signal import correlate
-
-    grid, ym = uniform_columns(t, y, step_s)
-    m = len(grid)
-    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
-    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
-    r = reference_poses(reference, grid[0] + shifts[0] + step_s * np.arange(m + count - 1))[:, 3:]
-    r = r - r.mean(axis=0)
-    ones = np.ones(m)
-    S_r = np.column_stack([correlate(r[:, b], ones, "valid") for b in range(3)])  # (K, 3)
-    S_rr = correlate(np.sum(r * r, axis=1), ones, "valid")
-    C = np.empty((count, 3, 3))  # C[k, b, a] = sum_i r[i + k, b] y[i, a]
-    for b in range(3):
-        for a in range(3):
-            C[:, b, a] = correlate(r[:, b], ym[:, a], "valid")
-    y0 = ym - ym.mean(axis=0)
-    R, score = _kabsch(C - S_r[:, :, None] * ym.mean(axis=0)[None, None, :])
-    ms = (np.sum(y0 * y0) + S_rr - np.sum(S_r * S_r, axis=1) / m - 2 * score) / m
-    k = int(np.argmin(ms))
-    return float(shifts[0] + k * step_s), np.array(R[k])
+    centroid, come nearest the reference's positions, and the rotation at that shift: the
+    package's one rotation-aware shift search (:func:`~stewart_drake.base.lag.rigid_shift`) on
+    the reference's translations."""
+    return lag_rigid_shift(
+        t, y, lambda times: reference_poses(reference, times)[:, 3:], shifts, step_s
+    )
 
 
 def in_span(reference: Reference, t_ref: np.ndarray, margin: float = 0.0) -> np.ndarray:
