@@ -87,8 +87,13 @@ MODULES = {
         "tests/test_alignment.py",
         "tests/test_registration_motion.py",
     ),
-    # The one lag search: its own tests and verify's clock's, which drive its score and search.
-    "stewart_drake/base/lag.py": ("tests/test_lag.py", "tests/test_alignment.py"),
+    # The one lag search: its own tests and verify's clock's, which drive its score and search;
+    # the registration's, which drive its rotation-aware search (rigid_shift).
+    "stewart_drake/base/lag.py": (
+        "tests/test_lag.py",
+        "tests/test_alignment.py",
+        "tests/test_registration_motion.py",
+    ),
     # The signal toolkit: its own tests, the verdict's periods and the Kalman model's.
     "stewart_drake/base/signals.py": (
         "tests/test_signals.py",
