@@ -50,6 +50,7 @@ from ..base.errors import InvalidConfigError
 from ..base.lag import inner_mask, signal_lag
 from ..base.pair_figures import relative_latency
 from ..base.signals import direction_words
+from ..base.verdicts import verdict as verdict_word
 
 
 def check_surrogate_trace(scenario, surrogate) -> None:
@@ -240,7 +241,7 @@ class RelativeLatency:
                 if lag != lag
             ]
             return f"{what}: not measured, {' and '.join(still)} did not move; FAIL: {bound}"
-        verdict = "PASS" if self.passed else "FAIL"
+        verdict = verdict_word(self.passed)
         # Two decimals: a figure at the bound reads on its side of it (-10.04 ms, not -10.0).
         return f"{what}: {1e3 * self.relative_s:+.2f} ms ({lags}); {verdict}: {bound}"
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from ..base import verdicts
 from ..execution.options import add_motion_arguments, add_scenario_arguments, positive_float
 from ..execution.trace_options import add_trace_arguments
 
@@ -319,19 +320,11 @@ def cmd_verify(args) -> int:
     return exit_status([ver.judgement.verdict for ver in results])
 
 
-#: ``verify``'s exit status of each verdict; of several, the worst (FAIL, then CANNOT JUDGE,
-#: then ACTION).
-EXIT_STATUS = {"PASS": 0, "FAIL": 2, "CANNOT JUDGE": 3, "ACTION": 4}
-
-
-def exit_status(verdicts) -> int:
-    """The exit status of ``verify``'s verdicts (:data:`EXIT_STATUS`): 2 when any FAILs,
-    else 3 when any cannot judge, else 4 when any is ACTION, else 0."""
-    verdicts = list(verdicts)
-    for worst in ("FAIL", "CANNOT JUDGE", "ACTION"):
-        if worst in verdicts:
-            return EXIT_STATUS[worst]
-    return 0
+#: ``verify``'s exit status of each verdict, the package's one
+#: (:data:`stewart_drake.base.verdicts.EXIT_STATUS`); of several, the worst's
+#: (:func:`~stewart_drake.base.verdicts.exit_status`).
+EXIT_STATUS = verdicts.EXIT_STATUS
+exit_status = verdicts.exit_status
 
 
 def record_options(args) -> list[str]:

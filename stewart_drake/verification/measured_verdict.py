@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..base.verdicts import verdict
 from ..organ_motion.fidelity import AXES, format_angle, format_length, format_window
 from .causes import axis_figures, causes_of
 from .verdict_levels import action_words, axis_levels
@@ -107,9 +108,7 @@ class Judgement:
     def verdict(self) -> str:
         """``"PASS"``, ``"ACTION"`` (passed, an axis beyond the action level), ``"FAIL"`` or
         ``"CANNOT JUDGE"``."""
-        if not self.passed:
-            return "CANNOT JUDGE" if self.cannot_judge else "FAIL"
-        return "ACTION" if self.action else "PASS"
+        return verdict(self.passed, bool(self.cannot_judge), bool(self.action))
 
     def as_dict(self) -> dict:
         """The judgement as JSON values."""
@@ -213,7 +212,7 @@ def judge(ver, tolerance: tuple[float, float], action_level=None) -> Judgement:
     levels = axis_levels(rms, measured, tolerance, action_level)
     action = {a: float(rms[AXES.index(a)]) for a, v in levels.items() if v == "ACTION"}
     action = action if passed else {}
-    word = ("ACTION" if action else "PASS") if passed else "CANNOT JUDGE" if unseen else "FAIL"
+    word = verdict(passed, bool(unseen), bool(action))
     line = (
         f"{word}: {compared}: RMS error per axis "
         f"{'within' if ok else 'beyond'} {format_length(tolerance[0])} | "

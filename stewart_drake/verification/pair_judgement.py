@@ -58,6 +58,7 @@ from typing import Any
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.verdicts import verdict, worst
 from .measured_verdict import (
     EDGE_S,
     seconds,
@@ -153,13 +154,14 @@ class PairVerification:
         or CANNOT JUDGE each) and the relative latency's (PASS or FAIL). The command's exit
         status is the worst of them, as ``verify``'s of one motion: a motion that cannot be
         judged is not a pair that passed."""
-        relative = "PASS" if self.judgement.passed else "FAIL"
+        relative = verdict(self.judgement.passed)
         return self.internal.judgement.verdict, self.surrogate.judgement.verdict, relative
 
     @property
     def verdict(self) -> str:
-        """The worst of :attr:`verdicts`: FAIL, else CANNOT JUDGE, else PASS."""
-        return next((v for v in ("FAIL", "CANNOT JUDGE") if v in self.verdicts), "PASS")
+        """The worst of :attr:`verdicts` (:func:`~stewart_drake.base.verdicts.worst`): FAIL,
+        else CANNOT JUDGE, else PASS."""
+        return worst(self.verdicts)
 
     def as_dict(self) -> dict:
         """The pair's figures as JSON values: the verdicts, the relative latency with its

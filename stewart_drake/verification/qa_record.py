@@ -47,14 +47,16 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingExtraError
+from ..base.verdicts import VERDICTS
 from ..organ_motion.fidelity import AXES
 from .qa_record_pdf import FONT, record_pdf, undrawable
 from .verdict_levels import axis_levels as _axis_levels
 
 #: The record's JSON layout; a reader checks it before reading the values.
 RECORD_SCHEMA = "stewart-drake/verify-record/1"
-#: The verdicts of a record, worst last.
-LEVELS = ("PASS", "ACTION", "CANNOT JUDGE", "FAIL")
+#: The verdicts of a record, worst last: the package's one list
+#: (:mod:`stewart_drake.base.verdicts`).
+LEVELS = VERDICTS
 #: The longest operator, serial or notes a record takes, characters.
 MAX_TEXT = 2000
 #: The largest input whose SHA-256 a record gives, bytes (the trace reader's own bound).
