@@ -256,9 +256,14 @@ class Criterion:
         return f"{axis} fails {self.name} ({self.compares}: {self.threshold})"
 
 
+def at_rest(fk: dict) -> bool:
+    """Whether a measured axis along which the reference moves is at rest: its RMS motion
+    below :data:`AT_REST_SHARE` of the reference's (``fk``: its :func:`axis_figures`)."""
+    return fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"]
+
+
 def _at_rest(case: AxisCase) -> tuple | None:
-    fk = case.fk
-    return () if fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"] else None
+    return () if at_rest(case.fk) else None
 
 
 def _runs_against(case: AxisCase) -> tuple | None:
@@ -386,12 +391,7 @@ def causes_of(
     # At rest: along the reference's motion, less than a share of it (never the tolerance: a
     # motion smaller than the tolerance moved all the same); where it holds still, within the
     # tolerance.
-    still = all(
-        f[k]["motion_rms"] < AT_REST_SHARE * f[k]["reference_rms"]
-        if moving[k]
-        else f[k]["motion_rms"] <= tol[k]
-        for k in seen
-    )
+    still = all(at_rest(f[k]) if moving[k] else f[k]["motion_rms"] <= tol[k] for k in seen)
     if moving_seen and still:
         moved = ", ".join(
             f"{AXES[k]} {axis_amount(k, f[k]['motion_rms'])} RMS against the reference's "
@@ -544,6 +544,7 @@ __all__ = [
     "PERIOD_SHARE",
     "REVERSED_RATIO",
     "moving_axis_cause",
+    "at_rest",
     "axis_figures",
     "causes_of",
     "reversed_match",

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..organ_motion.fidelity import AXES, MOVING_P2P
-from .causes import AT_REST_SHARE, axis_figures, moving_axis_cause
+from .causes import at_rest, axis_figures, moving_axis_cause
 from .verdict_notes import seconds
 
 #: Two measurements are swapped when each one's mean squared distance (each less its mean) to the
@@ -51,7 +51,7 @@ def why_not_following(reference, t, x, x_d, measured) -> str | None:
     if not axes:
         return "moves along no axis measured"
     f = axis_figures(t, x, x_d, measured)
-    if all(f[AXES[k]]["motion_rms"] < AT_REST_SHARE * f[AXES[k]]["reference_rms"] for k in axes):
+    if all(at_rest(f[AXES[k]]) for k in axes):
         moved = ", ".join(
             f"{AXES[k]} {f[AXES[k]]['motion_rms'] * 1e3:.3g} mm RMS against its reference's "
             f"{f[AXES[k]]['reference_rms'] * 1e3:.3g} mm"
