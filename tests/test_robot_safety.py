@@ -306,9 +306,10 @@ def test_teleop_on_the_robot_holds_where_it_rests_and_ends_with_the_torque_off(t
 
 
 def test_a_realtime_loop_the_os_refuses_is_one_line_and_the_run_goes_on(tmp_path, monkeypatch):
-    """``--realtime`` where the OS refuses the priority and the memory lock (simulated: the
-    calls fail as they do without the privilege): one line saying what and how to grant it, the
-    run to its end, the summary saying what the loop was given, and the thread as it was."""
+    """``--realtime`` where the OS refuses the priority, the memory lock and the idle states
+    (simulated: the calls fail as they do without the privilege, the PM QoS device missing):
+    one line saying what and how to grant it, the run to its end, the summary saying what the
+    loop was given, and the thread as it was."""
     import gc
 
     from stewart_drake.live import realtime
@@ -318,6 +319,8 @@ def test_a_realtime_loop_the_os_refuses_is_one_line_and_the_run_goes_on(tmp_path
 
     monkeypatch.setattr(realtime.os, "sched_setscheduler", refused)
     monkeypatch.setattr(realtime, "_memory_lock_refusal", lambda: "the memory lock limit is 8 kB")
+    missing = tmp_path / "no-pm-qos" / "cpu_dma_latency"
+    monkeypatch.setattr(realtime, "PM_QOS_DEVICE", str(missing))
     cores = os.sched_getaffinity(0)
     with _emulator() as emu:
         run, lines = _run(_scenario(emu, tmp_path), tmp_path, realtime=True)
@@ -326,6 +329,7 @@ def test_a_realtime_loop_the_os_refuses_is_one_line_and_the_run_goes_on(tmp_path
     assert len(said) == 1 and lines[0] == said[0], lines  # before the torque goes on
     assert "not granted: SCHED_FIFO priority 50 (Operation not permitted: run as root" in said[0]
     assert "ulimit -r 50" in said[0] and "ulimit -l unlimited" in said[0]
+    assert f"shallow idle states (no {missing}: a kernel without PM QoS)" in said[0]
     assert run.timing_lines[0] == (
         f"realtime: the normal policy (SCHED_OTHER), pinned to core {max(cores)}, memory not "
         "locked, garbage collected between periods"

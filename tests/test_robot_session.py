@@ -5,8 +5,10 @@ tests/test_robot_safety.py.
 """
 
 import math
+import os
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -240,3 +242,32 @@ def test_a_granted_realtime_loop_holds_its_core_and_priority_and_gives_them_back
         pytest.skip(f"the OS grants no real-time priority here: {refusals}")
     assert (policy, priority, cores) == (os.SCHED_FIFO, PRIORITY, {loop_core()})
     assert not collecting and seen["after"] and gc.isenabled()
+
+
+def _held_qos_files() -> int:
+    """How many of this process's open files are the PM QoS device (read from /proc)."""
+    from stewart_drake.live.realtime import PM_QOS_DEVICE
+
+    fds = Path("/proc/self/fd")
+    return sum(1 for fd in fds.iterdir() if os.path.realpath(fd) == PM_QOS_DEVICE)
+
+
+def test_a_granted_realtime_loop_holds_the_cores_idle_states_shallow_and_gives_them_back():
+    """Where the OS grants it (root, or write access to /dev/cpu_dma_latency): inside the loop
+    the kernel reads back a wake-up latency of 0 us in force, the loop holding the device open
+    once; on exit the file is closed (so the request is gone: the kernel holds it only while
+    the file is open)."""
+    from stewart_drake.live.realtime import IDLE_LATENCY_US, RealtimeLoop, idle_latency_in_force
+
+    if not os.path.exists("/proc/self/fd"):
+        pytest.skip("no /proc to read the open files from")
+    before = _held_qos_files()
+    with RealtimeLoop() as loop:
+        inside = (loop.idle_latency_us, idle_latency_in_force(), _held_qos_files())
+        refusals = list(loop.refusals)
+    if inside[0] is None:
+        pytest.skip(f"the OS grants no PM QoS request here: {refusals}")
+    assert IDLE_LATENCY_US == 0
+    assert inside == (0, 0, before + 1), inside
+    assert _held_qos_files() == before and loop.idle_latency_us is None
+    assert "idle states held to 0 us wake-up" not in loop.granted()

@@ -78,7 +78,8 @@ def add_drive_arguments(rob) -> None:
         action=argparse.BooleanOptionalAction,
         default=True,
         help="run the control loop on SCHED_FIFO priority 50, pinned to a core, its memory "
-        "locked, Python's garbage collected between periods (default; what the OS refuses is "
+        "locked, Python's garbage collected between periods, the cores' idle states held "
+        "shallow (PM QoS) (default; what the OS refuses is "
         "said in one line and the run goes on; with --emulate the emulator's process too)",
     )
     rob.add_argument(

@@ -134,7 +134,8 @@ def run_on_robot(
             the end line itself (it holds signals through it, then calls ``settle``); None: the
             session's own, settled before it returns.
         realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks (SCHED_FIFO, a core
-            of its own, memory locked, the garbage collector between periods); what the OS
+            of its own, memory locked, the garbage collector between periods, shallow idle
+            states); what the OS
             refuses is said in one line (``say``) and the run goes on.
         surrogate: the external surrogate's trace
             (:class:`~stewart_drake.station.surrogate.trace.SurrogateTrace`,
