@@ -116,6 +116,15 @@ class DynamixelBus(PositionMode):
             reply_timeout_s,
         )
         self.spec = settings.spec
+        #: The spec's unit conversions, computed once, not each period (its K_t looks the motor
+        #: catalogue up): rad a count, rad/s a velocity unit, K_t N m/A at the horn, A a current
+        #: unit (every model the bus takes has Current Control Mode: ``check_bus_settings``).
+        self._units_per_count = (
+            self.spec.rad_per_count,
+            self.spec.velocity_unit_rad_s,
+            self.spec.torque_constant_Nm_per_A,
+            self.spec.amps_per_unit,
+        )
         #: The cranks' control table (the surrogate's servo must keep its items there too).
         self.table = table = self.spec.table
         ids, zero, sign = settings.ids, settings.zero_counts, settings.directions
@@ -466,16 +475,8 @@ class DynamixelBus(PositionMode):
         t0, t1 = self._read_t
         n = len(self.ids)
         state = np.empty((3, n))
-        spec = self.spec
         self._kernels.crank_state(
-            self._raw[:n],
-            self._zero_f,
-            self._sign_f,
-            spec.rad_per_count,
-            spec.velocity_unit_rad_s,
-            spec.torque_constant_Nm_per_A,
-            spec.amps_per_unit,
-            state,
+            self._raw[:n], self._zero_f, self._sign_f, *self._units_per_count, state
         )
         t_mid = 0.5 * (t0 + t1)
         if self.surrogate is None:
@@ -512,8 +513,7 @@ class DynamixelBus(PositionMode):
         if tau.shape != applied.shape or not self._kernels.torque_command(
             np.array(tau),  # writable and contiguous, as compiled
             self._sign_f,
-            self.spec.torque_constant_Nm_per_A,
-            self.spec.amps_per_unit,
+            *self._units_per_count[2:],
             self.current_limit_units,
             self._crank_units,
             applied,
