@@ -51,6 +51,7 @@ from ..base.lag import inner_mask, signal_lag
 from ..base.pair_figures import relative_latency
 from ..base.signals import direction_words
 from ..base.verdicts import verdict as verdict_word
+from ..base.verdicts import within
 
 
 def check_surrogate_trace(scenario, surrogate) -> None:
@@ -209,7 +210,7 @@ class RelativeLatency:
     @property
     def passed(self) -> bool:
         """|relative_s| <= tolerance_s (False when it is NaN)."""
-        return bool(abs(self.relative_s) <= self.tolerance_s)
+        return within(self.relative_s, self.tolerance_s)
 
     def line(self) -> str:
         """The verdict in one line, naming what it compares."""

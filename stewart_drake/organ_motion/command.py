@@ -8,6 +8,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from ..base.verdicts import within
 from ..execution.options import (
     add_motion_arguments,
     add_scenario_arguments,
@@ -233,7 +234,7 @@ def _surrogate_verdict(args, rep, name: str, out: Path, tolerance) -> bool:
     for line in report_lines(fig):
         print(line)
     latency = fig["latency"]["relative_latency_s"]
-    ok = fig["external_rms_m"] <= tolerance[0] and abs(latency) <= args.surrogate_latency
+    ok = within(fig["external_rms_m"], tolerance[0]) and within(latency, args.surrogate_latency)
     fig["passed"] = bool(ok)
     fig["tolerance_m"], fig["latency_tolerance_s"] = tolerance[0], args.surrogate_latency
     path = out / f"reproduce_{name}_surrogate.json"

@@ -19,6 +19,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError
 from ..base.measures import peak_per_axis, rms_per_axis, rms_translation_rotation
 from ..base.units import length_and_angle
+from ..base.verdicts import axes_within
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -367,12 +368,12 @@ def tolerance_line(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str
     verdict, which must not read as one, uses the text alone."""
     rms = np.asarray(fid["rms"], dtype=float)
     kt = 3 + int(np.argmax(rms[3:]))
-    ok = rms[3:].max() <= tolerance[0]
     rotation = np.isfinite(rms[:3])
+    bounds = [tolerance[1]] * 3 + [tolerance[0]] * 3
+    ok = axes_within(rms, bounds, np.concatenate([rotation, [True] * 3]))
     largest = f"{AXES[kt]} {format_length(rms[kt])}, "
     if rotation.any():
         kr = int(np.argmax(np.where(rotation, rms[:3], -np.inf)))
-        ok = ok and rms[kr] <= tolerance[1]
         largest += f"{AXES[kr]} {format_angle(rms[kr])}"
     else:
         largest += "rotation not measured"

@@ -36,6 +36,7 @@ import numpy as np
 
 from ..base.measures import rms_per_axis
 from ..base.signals import PERIOD_POWER_SHARE, centred, dominant_period
+from ..base.verdicts import axes_within
 from ..organ_motion.fidelity import AXES, format_length
 from .verdict_notes import (
     seconds,
@@ -172,7 +173,7 @@ def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[s
     angle = float(turn.magnitude())
     back = turn.apply(q) - r
     before = float(np.sqrt(np.mean(np.sum((q - r) ** 2, axis=1))))
-    within = bool(np.all(rms_per_axis(back[:, seen]) <= tolerance[0]))
+    within = axes_within(rms_per_axis(back[:, seen]), tolerance[0])
     large = angle > MAX_TURN_RAD
     # A large turn must explain the motion to the tolerance: it competes with an axis's own
     # causes (a reversed axis and a scaled one fit a half turn to a quarter of their distance).

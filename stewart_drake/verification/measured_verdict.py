@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..base.verdicts import verdict
+from ..base.verdicts import axes_within, verdict, within
 from ..organ_motion.fidelity import AXES, format_angle, format_length, format_window
 from .causes import axis_figures, causes_of
 from .verdict_levels import action_words, axis_levels
@@ -153,9 +153,9 @@ def judge(ver, tolerance: tuple[float, float], action_level=None) -> Judgement:
     t, x, x_d = ver.result.t, ver.result.x, ver.result.x_d
     m = (t >= w0 - 1e-9) & (t <= w1 + 1e-9)
     x_w = np.where(np.isfinite(x[m]), x[m], x_d[m])
-    ok = bool(np.all(rms[measured] <= tol[measured]))
+    ok = axes_within(rms, tol, measured)
     latency_judged = ver.clock != "not known"
-    latency_ok = not latency_judged or abs(ver.latency_s) <= ver.max_latency_s
+    latency_ok = not latency_judged or within(ver.latency_s, ver.max_latency_s)
     unseen = "" if not (ok and latency_ok) else motion_unseen(x_d[m], measured, tolerance)
     left_out, too_much = uncompared_words(getattr(ver, "uncompared", {}))
     unseen = "; ".join(w for w in (too_much, unseen) if w)

@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from ..base.errors import InvalidConfigError
-from ..base.verdicts import verdict, worst
+from ..base.verdicts import verdict, within, worst
 from .measured_verdict import (
     EDGE_S,
     seconds,
@@ -312,7 +312,7 @@ def judge_relative(
             causes.append(f"{who} {why}")
     meaningful = not causes
     at_edge = abs(abs(relative_latency_s) - half_width_s) < EDGE_S
-    within = abs(relative_latency_s) <= max_relative_latency_s and not at_edge
+    inside = within(relative_latency_s, max_relative_latency_s) and not at_edge
     value = f"{'at least ' if at_edge else ''}{seconds(relative_latency_s)}"
     if at_edge:  # past half a breath, a breath earlier or later may match better than the true
         late = "which one is late is not known beyond the relative latencies searched"
@@ -322,17 +322,17 @@ def judge_relative(
         late = "the surrogate late against the internal target"
     else:
         late = "neither late"
-    if meaningful and not within:
+    if meaningful and not inside:
         causes.append(
             f"relative latency {value} beyond --max-relative-latency "
             f"{seconds(max_relative_latency_s)}: {late}"
             + (" (at the edge of the relative latencies searched)" if at_edge else "")
         )
-    passed = meaningful and within
+    passed = meaningful and inside
     if meaningful:
         figure = (
             f"relative latency {value} ({late}) "
-            f"{'within' if within else 'beyond'} +-{seconds(max_relative_latency_s)}"
+            f"{'within' if inside else 'beyond'} +-{seconds(max_relative_latency_s)}"
         )
     else:
         figure = f"relative latency {value} of no meaning while the cause holds"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..base.verdicts import axis_level
 from ..organ_motion.fidelity import AXES, format_angle, format_length
 from .verdict_sensitivity import axis_amount, axis_tolerances
 
@@ -23,15 +24,10 @@ def axis_levels(rms, measured, tolerance, action_level=None) -> dict:
     """
     tol = axis_tolerances(tolerance)
     act = None if action_level is None else axis_tolerances(action_level)
-    out = {}
-    for k in np.flatnonzero(measured):
-        if not rms[k] <= tol[k]:
-            out[AXES[k]] = "FAIL"
-        elif act is not None and rms[k] > act[k]:
-            out[AXES[k]] = "ACTION"
-        else:
-            out[AXES[k]] = "PASS"
-    return out
+    return {
+        AXES[k]: axis_level(rms[k], tol[k], None if act is None else act[k])
+        for k in np.flatnonzero(measured)
+    }
 
 
 def check_action_level(action_level, tolerance) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.measures import rms_per_axis
+from ..base.verdicts import axes_within
 from ..organ_motion.fidelity import AXES
 from .verdict_sensitivity import axis_amount, axis_tolerances
 
@@ -172,7 +173,7 @@ def outlier_words(found: dict, measured, tolerance, excluded: int = 0) -> str:
         for k in np.flatnonzero(measured & (largest > 0))
     )
     rest = np.asarray(found["rest_rms"], dtype=float)
-    rest_ok = bool(np.all(rest[measured] <= tol[measured]))
+    rest_ok = axes_within(rest, tol, measured)
     rms = ", ".join(  # below a nanometre or nanoradian: 0, not float noise
         f"{AXES[k]} {axis_amount(int(k), rest[k] if rest[k] >= 1e-9 else 0.0)}"
         for k in np.flatnonzero(measured)

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from ..base.verdicts import axes_within
 from ..organ_motion.fidelity import AXES, MOVING_P2P, format_angle, format_length
 
 #: The largest turn of the measured axes from the base frame's that is named alone, rad: beyond
@@ -112,7 +113,7 @@ def motion_unseen(x_d, measured, tolerance) -> str:
     tol = axis_tolerances(tolerance)
     rest = np.std(np.asarray(x_d, dtype=float), axis=0)
     seen = [int(k) for k in np.flatnonzero(measured)]
-    if not seen or any(rest[k] > tol[k] for k in seen):
+    if not seen or not axes_within(rest, tol, measured):  # at rest it would FAIL: seen
         return ""
     k = max(seen, key=lambda j: rest[j] / tol[j])
     return (

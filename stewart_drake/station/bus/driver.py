@@ -510,13 +510,16 @@ class DynamixelBus(PositionMode):
         tau = np.asarray(tau, dtype=float)
         self._require_open()
         applied = np.empty(len(self.ids))
-        if tau.shape != applied.shape or not self._kernels.torque_command(
-            np.array(tau),  # writable and contiguous, as compiled
-            self._sign_f,
-            *self._units_per_count[2:],
-            self.current_limit_units,
-            self._crank_units,
-            applied,
+        if (
+            tau.shape != applied.shape
+            or not self._kernels.torque_command(
+                np.array(tau),  # writable and contiguous, as compiled
+                self._sign_f,
+                *self._units_per_count[2:],
+                self.current_limit_units,
+                self._crank_units,
+                applied,
+            )
         ):
             raise InvalidConfigError(f"tau must be {len(self.ids)} finite torques, got {tau}")
         if self.surrogate is not None:
