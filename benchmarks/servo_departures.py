@@ -22,7 +22,7 @@ scenario's own. ``--clock loop`` puts the emulator's plant on the loop's clock
 
 Usage: python benchmarks/servo_departures.py [--scenario paper_bus phantom_bus] [--duration 20]
     [--skip 8] [--rows NAME ...] [--loop host|servo|scenario] [--clock wall|loop]
-    [--markdown FILE]
+    [--period S] [--markdown FILE]
 """
 
 import argparse
@@ -35,6 +35,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bus_accuracy import AXES, emulated, scenario_of  # noqa: E402
+
+from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
 
 #: (name, the emulator's settings): ideal, the realistic default, each departure alone at the
 #: edge of its range (emulator_config.py's ranges; the acceptance's kt 0.7 / 1.3).
@@ -80,10 +82,12 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
     # every row to its end: the misses are counted, not fatal (the emulator on the loop's clock
     # holds a read for its step: a loaded machine's late periods are the emulator's)
     args.set.append("bus.max_deadline_misses=1000000")
-    scenario = with_loop(scenario_of(args, 0.01), args.loop, family)
+    own = load_scenario(scenario_name).control_period_s
+    period = own if args.period is None else args.period
+    scenario = with_loop(scenario_of(args, period), args.loop, family)
     with tempfile.TemporaryDirectory() as out:
         scenario.guard.divergence_dir = f"{out}/diverged"
-        e_true, e_enc, cpu, misses, n, _ = emulated(scenario, args, 0.01, 0, out)
+        e_true, e_enc, cpu, misses, n, _ = emulated(scenario, args, period, 0, out)
     return {
         "true": (np.sqrt(np.mean(e_true**2, axis=0)), np.max(np.abs(e_true), axis=0)),
         "encoders": (np.sqrt(np.mean(e_enc**2, axis=0)), np.max(np.abs(e_enc), axis=0)),
@@ -146,6 +150,9 @@ def main() -> None:
     parser.add_argument("--loop", choices=("host", "servo", "scenario"), default="scenario")
     parser.add_argument(
         "--clock", choices=("wall", "loop"), default=None, help="default: the scenario's"
+    )
+    parser.add_argument(
+        "--period", type=float, default=None, help="the control period, s (default: the scenario's)"
     )
     args = parser.parse_args()
     args.motion, args.param, args.breakdown = "breathing", [], False

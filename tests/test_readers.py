@@ -82,6 +82,10 @@ ALLOWED = {
     ("robot/path_kernels.py", "source_digest", "Path(...).read_bytes"),
     # The kernel's run-queue time of the loop's own thread (/proc/thread-self/schedstat).
     ("station/bus/timing.py", "_RunQueueClock.__init__", "os.open"),
+    # The kernel's PM QoS device (/dev/cpu_dma_latency): a request written and held, the
+    # latency in force read back as 4 bytes.
+    ("live/realtime.py", "idle_latency_in_force", "os.open"),
+    ("live/realtime.py", "RealtimeLoop._ask_idle_latency", "os.open"),
     # numba's own cache files (in the package's __pycache__ or NUMBA_CACHE_DIR), unpickled only
     # once their signature by this user's key holds: as numba loads the cache, and to say
     # whether a command is about to compile. The key: a file of this user's, mode 0600.
