@@ -106,19 +106,21 @@ def test_the_friction_believed_converges_on_the_plants(plant_friction):
 def test_a_payload_the_controller_does_not_know_is_held_by_the_integral():
     """Half again the platform's mass (payload_scale 1.5) holding home: the gravity
     feed-forward is short by a third of the platform's weight, which sags the platform by
-    about 4 counts' worth of Z at first; the integral (its corner at 2.5 / 4 Hz) pushes the
-    cranks through their dry friction after about 3 s (measured: 4.3 counts until 2.9 s, within
-    one from 4 s on), and from 4 s on it is within two counts of home."""
+    about 3 counts' worth of Z at first; the integral (its corner at 2.5 / 4 Hz) builds with
+    that error and pushes the cranks through their dry friction after about 5 s, and from
+    6.5 s on it is within two counts of home (measured at the 5 ms period: 2.9 counts until
+    5 s, within one from 6 s on; at 10 ms the sag is 4.3 counts and the integral, fed a
+    larger error, breaks through at 3.5 s)."""
     from stewart_drake.references.trajectories import NamedReference
 
-    scenario = _bus(duration_s=5.0, payload_scale=1.5, reference=NamedReference(name="home"))
+    scenario = _bus(duration_s=8.0, payload_scale=1.5, reference=NamedReference(name="home"))
     result = run_experiment(scenario)
     count = _floor_from_the_jacobian(make_plan(_bus(), with_reference=False).geometry) * np.sqrt(
         12
     )  # one count, per axis
     early = result.x[result.t < 0.5, 5] - result.x_d[result.t < 0.5, 5]
-    assert np.abs(early).max() > 3 * count[5]  # the payload did sag it
-    e = result.x[result.t >= 4.0, :6] - result.x_d[result.t >= 4.0, :6]
+    assert np.abs(early).max() > 2 * count[5]  # the payload did sag it
+    e = result.x[result.t >= 6.5, :6] - result.x_d[result.t >= 6.5, :6]
     assert np.all(np.abs(e).max(axis=0) < 2 * count), np.abs(e).max(axis=0) / count
 
 

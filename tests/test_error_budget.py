@@ -48,14 +48,16 @@ def test_the_encoder_pose_carries_the_floor(short_budget):
     budget, _ = short_budget
     # what the robot reads carries the counts the true pose does not, and is of the floor's size:
     # not at least the floor on every axis, because the loop closes on those same counts (an
-    # axis that hardly moves in 8 s, Y here, samples few of a count's phases); and about the
-    # true error and the floor as independent parts (within a third)
+    # axis that hardly moves in 8 s, Y here, samples few of a count's phases: 0.6 of the sum
+    # below at the 5 ms period); and, on the axes breathing moves (X, Z), about the true error
+    # and the floor as independent parts (within a third)
     assert np.all(budget.encoder_pose > budget.total)
     assert np.all(
         (budget.encoder_pose > 0.5 * budget.floor) & (budget.encoder_pose < 3 * budget.floor)
     )
+    moving = [3, 5]
     np.testing.assert_allclose(
-        budget.encoder_pose[3:], np.hypot(budget.total, budget.floor)[3:], rtol=0.35
+        budget.encoder_pose[moving], np.hypot(budget.total, budget.floor)[moving], rtol=0.35
     )
 
 
@@ -81,8 +83,8 @@ def test_analyze_gives_the_servos_budget_at_the_command_line(tmp_path, capsys):
     assert "error budget of breathing at [0, 0, 0, 0, 0, 0.3]" in printed
     assert "| **encoder pose** (what the robot reads) |" in printed
     # the crank servo's robust margins (tests/test_servo_margins.py holds their figures)
-    assert "stable for a plant gain (true / believed torque per command) of 0.13 to 2.45" in printed
-    assert "with 6 ms more delay, 0.14 to 2.07" in printed
+    assert "stable for a plant gain (true / believed torque per command) of 0.12 to 2.87" in printed
+    assert "with 6 ms more delay, 0.12 to 2.18" in printed
     assert "  holds what a shipped servo must: gain 0.5 to 2 with 6 ms more delay" in printed
     record = json.loads((out / "budget.json").read_text())
     assert record["motion"] == "breathing" and len(record["total"]) == 6

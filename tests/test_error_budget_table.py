@@ -112,7 +112,7 @@ def test_each_without_run_takes_away_its_source_and_only_it(monkeypatch):
     module.error_budget(scenario, "breathing", duration_s=4.0, skip_s=1.0)
     full, encoders, period, current, friction, model = (seen[k] for k in range(6))
     hw = full.hardware
-    assert (full.control_period_s, hw.computation_delay_periods) == (0.01, 1)
+    assert (full.control_period_s, hw.computation_delay_periods) == (0.005, 1)  # paper_bus's
     assert encoders.hardware.encoders.counts_per_rev == 2**30
     assert (period.control_period_s, period.hardware.computation_delay_periods) == (1e-3, 0)
     assert period.hardware.encoders == hw.encoders
@@ -124,7 +124,7 @@ def test_each_without_run_takes_away_its_source_and_only_it(monkeypatch):
     assert friction.controller.friction_scale == 0.0 < full.controller.friction_scale
     assert model.payload_scale == 1.0 and full.payload_scale == 1.2
     for variant in (encoders, current, friction, model):
-        assert variant.control_period_s == 0.01
+        assert variant.control_period_s == 0.005
 
 
 def test_a_share_is_what_taking_the_source_away_removed_in_quadrature():
@@ -213,7 +213,7 @@ def test_the_budget_holds_each_run_where_its_source_is(monkeypatch):
     assert budget.window_s == (1.0, 4.0)
     assert budget.assumptions == {
         "centre": centre.tolist(),
-        "control_period_s": 0.01,
+        "control_period_s": 0.005,
         "delay_periods": 1,
         "counts_per_rev": 4096,
         "controller": "CrankServoDriver",

@@ -147,10 +147,14 @@ def test_a_loop_that_misses_every_deadline_says_so_in_a_few_lines(tmp_path, monk
     (the driver's wait for its period says so), with the progress bar shown, for a duration the
     bar's total once rounded below (0.80000049 s, 0.8 s shown). The misses are said in a line
     when their count reaches a power of two, each with the count, the worst and the causes;
-    tqdm does not warn; the run ends as any, the timing counting every miss."""
+    tqdm does not warn; the run ends as any, the timing counting every miss (at least one a
+    period: 0.8 s of the shipped scenario's periods)."""
+    from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
     from stewart_drake.station.bus.station import DynamixelDriver
 
-    monkeypatch.setattr(DynamixelDriver, "_wait_until", lambda self, due: (due + 0.015, 0.0))
+    period = load_scenario(ROBOT_SCENARIO).control_period_s
+    late = 1.5 * period
+    monkeypatch.setattr(DynamixelDriver, "_wait_until", lambda self, due: (due + late, 0.0))
     with _emulator() as emu:
         argv = ["robot", "home", "--scenario", str(robot_bus_yaml(tmp_path)), "--port", emu.port]
         argv += ["--duration", "0.30000049", "--home-s", "0.5", "--loop-timeout", "5"]
@@ -158,11 +162,12 @@ def test_a_loop_that_misses_every_deadline_says_so_in_a_few_lines(tmp_path, monk
         torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
     out, err = capsys.readouterr()
     assert code == 0 and torque == [0] * 6, (out, err)
-    misses = int(re.search(r"(\d+) periods of 10 ms, (\d+) deadline misses", out).group(2))
+    found = re.search(rf"(\d+) periods of {1e3 * period:g} ms, (\d+) deadline misses", out)
+    misses = int(found.group(2))
     said = [line for line in re.split(r"[\r\n]", err) if line.startswith("deadline misses: ")]
-    assert misses >= 80 and len(said) == int(math.log2(misses)) + 1, (misses, said)
+    assert misses >= round(0.8 / period) and len(said) == int(math.log2(misses)) + 1, (misses, said)
     assert [int(line.split()[2]) for line in said] == [2**k for k in range(len(said))]
-    assert "the worst 15.0 ms late at t = " in said[0] and "by cause: " in said[-1]
+    assert f"the worst {1e3 * late:.1f} ms late at t = " in said[0] and "by cause: " in said[-1]
     assert "the period did not hold" in out
     # the session's figures say whose pose they are: the encoders', not the platform's
     assert "\nRMS tracking error of the pose the encoders read over t in [" in "\n" + out
@@ -462,12 +467,16 @@ def test_robot_emulate_dry_run_as_readme_shows_it(capsys):
 # -- the robot command's hostile input: refused before anything is powered ------------------------
 
 
-@pytest.mark.parametrize("timeout", ["1e-9", "0.015", "11"])
+@pytest.mark.parametrize("timeout", ["1e-9", "0.0099", "11"])
 def test_a_loop_timeout_our_watchdog_could_not_keep_is_refused_before_the_bus_opens(
     tmp_path, capsys, timeout
 ):
-    """Below two control periods (10 ms on the shipped bus scenario) our watchdog would remove
-    the torque at the first period; above 10 s it would not guard the loop."""
+    """Below two control periods (2 x 5 ms on the shipped bus scenario: 0.0099 s is refused)
+    our watchdog would remove the torque at the first period; above 10 s it would not guard
+    the loop."""
+    from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
+
+    period = load_scenario(ROBOT_SCENARIO).control_period_s
     opened = []
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(driver.DynamixelBus, "open", lambda self: opened.append(self))
@@ -477,7 +486,8 @@ def test_a_loop_timeout_our_watchdog_could_not_keep_is_refused_before_the_bus_op
     assert code == 2 and len(err) == 1 and not opened, err
     assert err[0] == (
         f"stewart-drake robot: --loop-timeout {float(timeout):g} s: our watchdog needs at least "
-        "two control periods (2 x 0.01 s) and at most 10 s; give a value in [0.02, 10] s"
+        f"two control periods (2 x {period:g} s) and at most 10 s; give a value in "
+        f"[{2 * period:g}, 10] s"
     )
 
 

@@ -53,10 +53,17 @@ X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])
 REPLY_S = LOADED_MACHINE_BUS["reply_timeout_s"]
 
 
-def _emulator(s0_m=0.003, stage=STAGE, models=None):
+def _emulator(s0_m=0.003, stage=STAGE, models=None, period_s=PERIOD_S):
     """The robot's plant and the surrogate's stage (its carriage at ``s0_m``) behind one bus,
-    on the commanded clock."""
-    return bus_emulator(X_REST, PERIOD_S, CRANKS, surrogate=stage, s0_m=s0_m, models=models)
+    on the commanded clock (a period of ``period_s`` a command)."""
+    return bus_emulator(X_REST, period_s, CRANKS, surrogate=stage, s0_m=s0_m, models=models)
+
+
+def _shipped_period_s() -> float:
+    """The shipped bus scenario's control period, s (paper_bus: 5 ms)."""
+    from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
+
+    return load_scenario(ROBOT_SCENARIO).control_period_s
 
 
 def _scenario(emu, tmp_path, stage=STAGE, **bus):
@@ -460,8 +467,8 @@ def _interact_run(tmp_path, pair, stage=STAGE, controller=None):
     folder = folder / "LIGHT SABR traces"
     internal, external = folder / "Internal" / pair[0], folder / "Resp" / pair[1]
     surrogate = load_surrogate(external)
-    with _emulator(s0_m=0.0, stage=stage) as emu:
-        scenario = load_scenario(ROBOT_SCENARIO)
+    scenario = load_scenario(ROBOT_SCENARIO)
+    with _emulator(s0_m=0.0, stage=stage, period_s=scenario.control_period_s) as emu:
         scenario.hardware = None
         if controller is not None:
             scenario.controller, scenario.feedforward = controller, "gravity"
@@ -493,6 +500,7 @@ def test_interact_pairs_emulated_move_within_one_period_of_each_other(tmp_path, 
     it is given within a tenth of a period and 0.1 mm RMS."""
     from stewart_drake.references.traces import load_trace
 
+    period = _shipped_period_s()
     judged = _interact_run(tmp_path, pair).relative_latency
     print(f"{pair[0]}: {judged.line()}")
     # The platform judged along where the internal trace moves most: the first principal axis of
@@ -502,14 +510,14 @@ def test_interact_pairs_emulated_move_within_one_period_of_each_other(tmp_path, 
     p = load_trace(trace).evaluate(np.arange(0.0, INTERACT_SECONDS, 0.01))[0][:, 3:]
     v = np.linalg.svd(p - p.mean(axis=0), full_matrices=False)[2][0]
     assert abs(float(np.dot(judged.platform_direction, v))) > np.cos(np.radians(1.0))
-    assert abs(judged.relative_s) <= PERIOD_S and judged.passed
-    assert abs(judged.servo_lag_s) < 0.1 * PERIOD_S and judged.surrogate_rms_m < 1e-4
+    assert abs(judged.relative_s) <= period and judged.passed
+    assert abs(judged.servo_lag_s) < 0.1 * period and judged.surrogate_rms_m < 1e-4
     # The carriage's lag is the delay it was given (and its servo's), not a figure of its own:
     # to within what the delay varies by over the run (its mean taken here).
     late = judged.matching_delay_s + judged.servo_lag_s
-    assert abs(judged.surrogate_lag_s - late) < 0.2 * PERIOD_S
+    assert abs(judged.surrogate_lag_s - late) < 0.2 * period
     # The periods after the lead-in (the trace, its 1 s ramp at the end), less 0.5 s each end.
-    assert abs(judged.samples - (INTERACT_SECONDS + 1.0 - 2 * 0.5) / PERIOD_S) <= 2
+    assert abs(judged.samples - (INTERACT_SECONDS + 1.0 - 2 * 0.5) / period) <= 2
 
 
 @pytest.mark.slow
@@ -523,8 +531,9 @@ def test_without_lag_matching_the_platforms_own_lag_fails_the_pair(tmp_path):
 
     stage = dataclasses.replace(STAGE, match_platform_lag=False)
     lqi = LqiDriver(omega_Q=0.01, schedule_period_s=0.02)
+    period = _shipped_period_s()
     judged = _interact_run(tmp_path, INTERACT_PAIRS[0], stage, lqi).relative_latency
     print(f"{INTERACT_PAIRS[0][0]} without lag matching: {judged.line()}")
     assert math.isnan(judged.matching_delay_s)
-    assert judged.relative_s > 2 * PERIOD_S and not judged.passed and "FAIL" in judged.line()
+    assert judged.relative_s > 2 * period and not judged.passed and "FAIL" in judged.line()
     assert abs(judged.relative_s - (judged.platform_lag_s - judged.surrogate_lag_s)) < 1e-12

@@ -22,7 +22,7 @@ def test_the_bus_scenario_is_simulated_with_its_servos_and_its_bus_closed():
     # The bus's servo as the catalogue has it, and one period of delay as the driver makes.
     assert motor.coulomb_friction_Nm == pytest.approx(servo.coulomb_friction_Nm, rel=1e-12)
     assert simulated.hardware.computation_delay_periods == 1
-    assert simulated.control_period_s == on_bus.control_period_s == pytest.approx(0.01)
+    assert simulated.control_period_s == on_bus.control_period_s == pytest.approx(0.005)
     assert make_plan(simulated).station_factory is StewartStation
 
 
