@@ -80,3 +80,37 @@ def test_a_servo_model_added_to_its_two_tables_reaches_a_command(tmp_path, capsy
     assert f"limit {0.9 * peak:.3g} N m, 90 % of the motors' {peak:.3g} N m peak" in out
     assert f"limit {0.9 * speed:.3g} rad/s, 90 % of the motors' {speed:.3g} rad/s no-load" in out
     assert "3.57 N m peak" not in out and "4.82 rad/s" not in out
+
+
+def test_a_headerless_format_added_to_its_table_reaches_the_commands(tmp_path, capsys, monkeypatch):
+    """A tracker's export without a header line, 4 columns (time s, then SI, LR, AP in mm), is
+    a row of ``base.trace_layouts.HEADERLESS_FORMATS``. Added there, ``check FILE --format
+    tracker4`` reads the file by the row's columns (200 samples at 10 Hz, SI on +X, AP on +Z),
+    and ``check FILE`` alone knows it by its width; without the row the same file is refused,
+    and ``--format tracker4`` is not a choice."""
+    from stewart_drake.base import trace_layouts
+
+    t = np.arange(0.0, 20.0, 0.1)
+    rows = [
+        f"{a:.2f} {5 * np.sin(np.pi * a / 2):.4f} 0.0 {2 * np.sin(np.pi * a / 2):.4f}" for a in t
+    ]
+    trace = tmp_path / "tracker.txt"
+    trace.write_text("\n".join(rows) + "\n")
+    argv = ["check", str(trace), "--out", str(tmp_path / "o")]
+
+    assert main(argv) == 2
+    assert "no header line and 4 columns" in capsys.readouterr().err
+    try:
+        main([*argv, "--format", "tracker4"])
+    except SystemExit as end:  # argparse refuses a choice it does not have
+        assert end.code == 2
+    assert "invalid choice: 'tracker4'" in capsys.readouterr().err
+
+    columns = "t [s], SI [mm], LR [mm], AP [mm]"
+    monkeypatch.setitem(trace_layouts.HEADERLESS_FORMATS, "tracker4", columns)
+    for extra in (["--format", "tracker4"], []):
+        assert main([*argv, *extra]) == 0
+        out = capsys.readouterr().out
+        assert "Trace: tracker.txt (tracker4 format, no header, separated by spaces): 200 " in out
+        assert "samples at 10 Hz over 19.9 s; SI [mm] -> +X, LR [mm] -> +Y, AP [mm] -> +Z" in out
+        assert "OK: trajectory validated" in out

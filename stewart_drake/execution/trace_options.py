@@ -7,6 +7,7 @@ Like :mod:`.options`, it imports nothing of the features and nothing heavy when 
 
 from __future__ import annotations
 
+from ..base.trace_layouts import trace_formats
 from .options import positive_float
 
 
@@ -14,12 +15,13 @@ def add_trace_arguments(parser) -> None:
     """The options that say how a trace file is read, one definition for every command that
     reads one (``check``, ``reproduce``): :func:`trace_reference` turns them into a
     :class:`~stewart_drake.references.traces.TraceReference`."""
-    # Written out, not imported from references.traces: building the parser reads no numpy
-    # (tests/test_trace_formats.py holds them equal to TRACE_FORMATS, CENTRE_MODES, SKIP_COLUMN,
+    # The formats from their one table (base.trace_layouts: names only); the rest written out,
+    # not imported from references.traces: building the parser reads no numpy
+    # (tests/test_trace_formats.py holds them equal to CENTRE_MODES, SKIP_COLUMN,
     # SMOOTHING_MODES and SEAM_BLEND_S).
     parser.add_argument(
         "--format",
-        choices=["auto", "csv", "phantom", "surrogate", "vxp"],
+        choices=trace_formats(),
         default="auto",
         help="a trace's layout: auto reads a header line (a Varian RPM .vxp export by its "
         "[Header]), else 7 columns as the phantom format and 2 as a surrogate",

@@ -23,6 +23,13 @@ import numpy as np
 
 from ..base.checks import MAX_POSITION_M
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
+from ..base.trace_layouts import (
+    HEADERLESS_FORMATS,
+    PHANTOM_COLUMNS,
+    SURROGATE_COLUMNS,
+    headerless_format_of_width,
+    trace_formats,
+)
 from ..base.units import UNITS
 from ..robot.kinematics import AXIS_NAMES
 from .organ.core import axis_index
@@ -35,18 +42,12 @@ MAX_TRACE_BYTES = 256e6
 TRACE_BYTES_PER_LINE = 2.8e3
 #: Time units of a trace's time column: factor to s (the one table's).
 TIME_UNITS = UNITS["s"]
-#: The layouts :func:`load_trace` reads (``format``): "auto" (a header line, else the width
-#: decides: 7 columns are "phantom", 2 are "surrogate"), "csv" (a header line naming each
-#: column and its unit), "phantom", "surrogate", "vxp" (a Varian RPM export: "auto" knows it by
-#: its ``[Header]``).
-TRACE_FORMATS = ("auto", "csv", "phantom", "surrogate", "vxp")
-#: The columns of the 6-D motion phantom format (Image-X Institute's IntERAct: text without a
-#: header, one sample per line, numbers separated by spaces, 5 Hz in its library): time, the
-#: target's translation in the patient's axes, and its rotation about them.
-PHANTOM_COLUMNS = "t [s], LR [mm], SI [mm], AP [mm], rot_LR [deg], rot_SI [deg], rot_AP [deg]"
-#: The columns of a phantom's external surrogate file (2 columns without a header: time and the
-#: marker's displacement): the displacement goes to the patient's SI unless mapped elsewhere.
-SURROGATE_COLUMNS = "t [s], surrogate [mm]"
+#: The layouts :func:`load_trace` reads as shipped (``format``): "auto" (a header line, else
+#: the width decides: 7 columns are "phantom", 2 are "surrogate"), "csv" (a header line naming
+#: each column and its unit), "phantom", "surrogate", "vxp" (a Varian RPM export: "auto" knows
+#: it by its ``[Header]``); with any format added to the table,
+#: :func:`stewart_drake.base.trace_layouts.trace_formats`.
+TRACE_FORMATS = trace_formats()
 #: Where a surrogate's displacement goes by default (``axis_map`` overrides it).
 SURROGATE_AXIS = {"surrogate": "SI"}
 #: The name that skips a column in ``columns`` (a tracker's frame counter): ``-,t [ms],X [mm]``.
@@ -162,8 +163,10 @@ def read_trace_table(
 
     remedy = _trace_remedy(columns_option)
 
-    if format not in TRACE_FORMATS:
-        raise InvalidConfigError(f"trace format {format!r}: use one of {', '.join(TRACE_FORMATS)}")
+    if format not in trace_formats():
+        raise InvalidConfigError(
+            f"trace format {format!r}: use one of {', '.join(trace_formats())}"
+        )
     if not path.exists():
         raise MissingFileError(f"no trace at {path}: check the path")
     raw = read_checked(path, "trace file", MAX_TRACE_BYTES, remedy)
@@ -189,7 +192,7 @@ def read_trace_table(
     if not rows:
         raise InvalidConfigError(f"{path}: empty; {remedy}")
     headed = not all(_number(c) for c in rows[0][1:])
-    if format in ("phantom", "surrogate") and headed:
+    if format in HEADERLESS_FORMATS and headed:
         raise InvalidConfigError(
             f"{path}: the {format} format has no header line, but line {rows[0][0]} is not "
             f"all numbers; leave --format out to read the header"
@@ -203,16 +206,13 @@ def read_trace_table(
         header, how = rows[0][1:], "header"
     else:
         width = len(rows[0]) - 1
-        kind = format if format != "auto" else {7: "phantom", 2: "surrogate"}.get(width)
+        kind = format if format != "auto" else headerless_format_of_width(width)
         if kind is None:
             raise InvalidConfigError(
                 f"{path}: no header line and {width} columns, neither the phantom format (7: "
                 f"{PHANTOM_COLUMNS}) nor a surrogate (2: time, displacement); {remedy}"
             )
-        header = [
-            c.strip()
-            for c in (PHANTOM_COLUMNS if kind == "phantom" else SURROGATE_COLUMNS).split(",")
-        ]
+        header = [c.strip() for c in HEADERLESS_FORMATS[kind].split(",")]
         how = f"{kind} format, no header"
     return header, data, f"{how}, {layout}"
 

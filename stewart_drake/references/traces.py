@@ -23,6 +23,7 @@ import numpy as np
 
 from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError, MissingFileError
+from ..base.trace_layouts import trace_formats
 from ..robot.geometry import X_HOME, StewartGeometry
 from ..robot.kinematics import AXIS_NAMES
 from .motion import Reference, ReferenceConfig
@@ -38,7 +39,6 @@ from .samples import (
 )
 from .trace_cleaning import MIN_LOOP_S, SEAM_BLEND_S, blend_seams, loop_seams, smoothed_spline
 from .trace_files import (
-    TRACE_FORMATS,
     TraceTable,
     read_trace_table,
     repaired_words,
@@ -344,7 +344,8 @@ def load_trace(
         lowpass_hz: corner of the zero-phase low-pass, Hz, below half ``resample_hz``, or None.
         max_gap_s: longest interval an axis may go without data, s (longer: refused).
         resample_hz: rate of the samples joined by the C2 spline, Hz.
-        format: one of :data:`TRACE_FORMATS` ("auto": by the file's width).
+        format: one of :func:`~stewart_drake.base.trace_layouts.trace_formats` ("auto": by
+            the file's width).
         columns: the columns' names and units when the file has no header (or to replace
             it), e.g. ``"t [s], SI [mm]"``; a column named ``-``
             (:data:`~.trace_files.SKIP_COLUMN`) is not read.
@@ -480,8 +481,9 @@ class TraceReference(ReferenceConfig):
         lowpass_hz: corner of the zero-phase low-pass, Hz (0: none).
         max_gap_s: longest interval without data an axis may have, s.
         scale: the trace shrunk about its centre, in (0, 1].
-        format: the file's layout, one of :data:`TRACE_FORMATS` ("auto": its header, else its
-            width). columns: its columns' names and units when it has no header line.
+        format: the file's layout, one of
+            :func:`~stewart_drake.base.trace_layouts.trace_formats` ("auto": its header, else
+            its width). columns: its columns' names and units when it has no header line.
         add: motions of the library laid on the trace, name -> parameters
             (``{baseline_drift: {drift: 3mm}}``: a drift on a recording,
             :func:`~.combinators.layered`); the scale shrinks the sum.
@@ -511,9 +513,9 @@ class TraceReference(ReferenceConfig):
                 f"reference.smoothing must be one of {', '.join(SMOOTHING_MODES)}, got "
                 f"{self.smoothing!r}"
             )
-        if self.format not in TRACE_FORMATS:
+        if self.format not in trace_formats():
             raise InvalidConfigError(
-                f"reference.format must be one of {', '.join(TRACE_FORMATS)}, got {self.format!r}"
+                f"reference.format must be one of {', '.join(trace_formats())}, got {self.format!r}"
             )
         if not self.path or not Path(self.path).exists():
             raise MissingFileError(f"no trace at {self.path!r} (reference.path): check the path")

@@ -10,7 +10,7 @@ from scipy.interpolate import CubicSpline
 
 from ...base.errors import InvalidConfigError, MissingFileError
 from ...base.signals import principal_displacement
-from ...references.trace_files import TRACE_FORMATS
+from ...base.trace_layouts import trace_formats
 from .correlation import CorrelationModel
 from .stage import SurrogateStage
 
@@ -74,9 +74,9 @@ class SurrogateAxis:
         (no file at ``trace``)."""
         self.stage.validate(control_period_s)
         self.correlation.validate()
-        if self.format not in TRACE_FORMATS:
+        if self.format not in trace_formats():
             raise InvalidConfigError(
-                f"surrogate.format must be one of {', '.join(TRACE_FORMATS)}, got {self.format!r}"
+                f"surrogate.format must be one of {', '.join(trace_formats())}, got {self.format!r}"
             )
         if self.trace and not Path(self.trace).is_file():
             raise MissingFileError(f"no file at {self.trace!r} (surrogate.trace): check the path")
