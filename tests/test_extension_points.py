@@ -114,3 +114,49 @@ def test_a_headerless_format_added_to_its_table_reaches_the_commands(tmp_path, c
         assert "Trace: tracker.txt (tracker4 format, no header, separated by spaces): 200 " in out
         assert "samples at 10 Hz over 19.9 s; SI [mm] -> +X, LR [mm] -> +Y, AP [mm] -> +Z" in out
         assert "OK: trajectory validated" in out
+
+
+def _encoder_floor(name: str) -> dict:
+    """A small study's job (module-level: a pool pickles it): the encoders' floor of one shipped
+    bus robot at home, X um, with the study's "sim_s" and "wall_s" (nothing simulated)."""
+    from stewart_drake.analysis.error_budget import quantization_floor
+    from stewart_drake.run.scenario_io import load_scenario
+
+    return {"X_um": 1e6 * float(quantization_floor(load_scenario(name))[3]), "sim_s": 0.0,
+            "wall_s": 0.0}  # fmt: skip
+
+
+def test_a_study_built_from_the_named_pieces_writes_its_table_into_a_doc(tmp_path):
+    """A study is its jobs run through ``execution.runners`` (a job that fails is a row that
+    says so), its table made by ``base.tables``, written between its markers by
+    ``base.fileio.write_between_markers`` with ``studies.simulated_line`` under it. A small
+    one (the encoders' floor of each shipped bus robot, and a robot that does not exist) put
+    into a doc with text of its own: the table lands between the markers, the doc's text is
+    kept, and a second run replaces the table in place. The floors are the error budget's,
+    checked against the bound of half a count through the Jacobian elsewhere
+    (tests/test_error_budget.py); here only that they are a paper_bus's 134 um and a
+    phantom_bus's 1.04 um (526,374 counts a turn)."""
+    from stewart_drake.base.fileio import write_between_markers
+    from stewart_drake.base.tables import markdown_lines
+    from stewart_drake.execution.runners import SerialRunner, map_outcomes
+    from stewart_drake.studies import simulated_line
+
+    markers = ("<!-- floor table: a test's study -->", "<!-- end of floor table -->")
+    doc = tmp_path / "study.md"
+    doc.write_text("# A page\n\nText before.\n\n## After\n\nText after.\n")
+    jobs = {name: name for name in ("paper_bus", "phantom_bus", "no_such_robot")}
+    for _ in range(2):
+        results = map_outcomes(SerialRunner(), _encoder_floor, jobs, progress=False)
+        rows = [
+            [name, f"{r['X_um']:.3g}" if isinstance(r, dict) else f"failed: {r[:40]}"]
+            for name, r in results.items()
+        ]
+        lines = markdown_lines(["robot", "X floor, um"], rows)
+        block = "\n".join([markers[0], "", *lines, "", simulated_line(results, "runs"), markers[1]])
+        write_between_markers(doc, markers, block)
+    text = doc.read_text()
+    assert text.count(markers[0]) == 1 and text.count("| paper_bus | 134 |") == 1
+    assert text.startswith("# A page\n\nText before.\n\n## After\n\nText after.\n")
+    assert "| phantom_bus | 1.04 |" in text  # docs/robot.md's budget: 1.04 um
+    assert "| no_such_robot | failed: " in text
+    assert "2 runs, 0 s simulated in 0 s of simulation wall time." in text
