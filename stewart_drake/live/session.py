@@ -135,8 +135,7 @@ def run_on_robot(
             session's own, settled before it returns.
         realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks (SCHED_FIFO, a core
             of its own, memory locked, the garbage collector between periods, shallow idle
-            states); what the OS
-            refuses is said in one line (``say``) and the run goes on.
+            states); what the OS refuses is said in one line (``say``) and the run goes on.
         surrogate: the external surrogate's trace
             (:class:`~stewart_drake.station.surrogate.trace.SurrogateTrace`,
             :func:`~stewart_drake.station.surrogate.carriage.load_surrogate`), driven on the

@@ -222,7 +222,7 @@ class CrankServoController(LeafSystem):
         state = context.get_discrete_state(self._state).value()
         s = state[self._parts["status"]]
         schedules = context.get_discrete_state(self._inertia_state).value()[72]
-        friction_mean = state[self._parts["friction"]].sum() / 6.0  # np.mean's checks, per period
+        friction_mean = state[self._parts["friction"]].sum() / 6.0  # not np.mean: its overhead
         output.SetFromVector([s[1], s[2], friction_mean, schedules])
 
     def _Update(self, context, discrete_state):

@@ -116,9 +116,7 @@ class DynamixelBus(PositionMode):
             reply_timeout_s,
         )
         self.spec = settings.spec
-        #: The spec's unit conversions, computed once, not each period (its K_t looks the motor
-        #: catalogue up): rad a count, rad/s a velocity unit, K_t N m/A at the horn, A a current
-        #: unit (every model the bus takes has Current Control Mode: ``check_bus_settings``).
+        #: rad a count, rad/s a velocity unit, K_t N m/A, A a current unit: once, not a period.
         self._units_per_count = (
             self.spec.rad_per_count,
             self.spec.velocity_unit_rad_s,
