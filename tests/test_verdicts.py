@@ -23,6 +23,13 @@ def test_each_verdict_word(passed, cannot_judge, action, word):
     assert v.verdict(passed, cannot_judge, action) == word
 
 
+def test_a_verdict_by_its_figure_alone_is_pass_or_fail():
+    """Without the other two words a check says PASS or FAIL: neither CANNOT JUDGE nor ACTION
+    unless the check says so."""
+    assert v.verdict(True) == "PASS"
+    assert v.verdict(False) == "FAIL"
+
+
 @pytest.mark.parametrize(
     "words, worst, status",
     [
@@ -76,6 +83,9 @@ def test_a_figure_within_its_bound(value, bound, inside):
         ([NAN, 0, 0, 0, 0, 0], [False, True, True, True, True, True], True),  # unmeasured
         ([NAN, 0, 0, 0, 0, 0], None, False),  # a judged NaN fails
         ([0, 0, 0, 0, 0, 0], [False] * 6, True),  # nothing judged: nothing beyond
+        ([NAN, 0, 0, 0, 0, 0.2e-3], [False, True, True, True, True, True], False),  # Z judged
+        ([1.1e-3, 0, 0, 0, 0, 0], [0, 1, 1, 1, 1, 1], True),  # a 0/1 mask is a mask, not indices
+        ([0, 0, 0, 0, 0, 0.2e-3], [0, 1, 1, 1, 1, 1], False),
     ],
 )
 def test_every_judged_axis_within_its_bound(errors, judged, inside):

@@ -107,6 +107,8 @@ MODULES = {
         "tests/test_verification.py",
     ),
     "stewart_drake/verification/verdict_levels.py": ("tests/test_measured_verdict.py",),
+    # Every PASS rule, held to bounds, NaNs and unjudged axes written in the test.
+    "stewart_drake/base/verdicts.py": ("tests/test_verdicts.py",),
     # The record's values from a verification made by hand (tests/test_qa_record_data.py), not
     # tests/test_qa_record.py, which runs the command and draws the PDF: 10 s a mutant.
     "stewart_drake/verification/qa_record.py": ("tests/test_qa_record_data.py",),
