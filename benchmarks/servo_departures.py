@@ -22,7 +22,10 @@ scenario's own. ``--clock loop`` puts the emulator's plant on the loop's clock
 
 Usage: python benchmarks/servo_departures.py [--scenario paper_bus phantom_bus] [--duration 20]
     [--skip 8] [--rows NAME ...] [--loop host|servo|scenario] [--clock wall|loop]
-    [--period S] [--markdown FILE]
+    [--period S] [--set NAME=VALUE ...] [--markdown FILE]
+
+``--set`` applies to every row after the row's own settings: a controller's variant measured
+over the same draws (``--set controller.friction_scale=0.5``).
 """
 
 import argparse
@@ -43,6 +46,8 @@ from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
 ROWS = (
     ("ideal", ["emulator.servos=ideal"]),
     ("realistic (seed 0)", []),
+    ("realistic (seed 1)", ["emulator.seed=1"]),
+    ("realistic (seed 2)", ["emulator.seed=2"]),
     ("realistic, kt x0.7", ["emulator.kt_scale=0.7"]),
     ("realistic, kt x1.3", ["emulator.kt_scale=1.3"]),
     ("realistic, rotor x0.5", ["emulator.rotor_inertia_scale=0.5"]),
@@ -79,6 +84,7 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
     family = servo_spec(scenario_of(args, 0.01).bus.model, torque_control=False).table.family
     args.set = [] if args.clock is None else [f"emulator.clock={args.clock}"]  # a row's own wins
     args.set += [s.replace("BACKLASH", repr(BACKLASH_MAX_RAD[family])) for s in settings]
+    args.set += args.extra  # --set: every row's, after its own
     # every row to its end: the misses are counted, not fatal (the emulator on the loop's clock
     # holds a read for its step: a loaded machine's late periods are the emulator's)
     args.set.append("bus.max_deadline_misses=1000000")
@@ -153,6 +159,15 @@ def main() -> None:
     )
     parser.add_argument(
         "--period", type=float, default=None, help="the control period, s (default: the scenario's)"
+    )
+    parser.add_argument(
+        "--set",
+        dest="extra",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a scenario setting for every row, after the row's own (repeatable): a controller "
+        "variant, e.g. controller.friction_scale=0.5",
     )
     args = parser.parse_args()
     args.motion, args.param, args.breakdown = "breathing", [], False
