@@ -22,10 +22,13 @@ scenario's own. ``--clock loop`` puts the emulator's plant on the loop's clock
 
 Usage: python benchmarks/servo_departures.py [--scenario paper_bus phantom_bus] [--duration 20]
     [--skip 8] [--rows NAME ...] [--loop host|servo|scenario] [--clock wall|loop]
-    [--period S] [--set NAME=VALUE ...] [--markdown FILE]
+    [--period S] [--set NAME=VALUE ...] [--commissioned [ERROR]] [--markdown FILE]
 
 ``--set`` applies to every row after the row's own settings: a controller's variant measured
-over the same draws (``--set controller.friction_scale=0.5``).
+over the same draws (``--set controller.friction_scale=0.5``). ``--commissioned [ERROR]`` gives
+the crank servo what each servo's commissioning would identify (docs/servo_bench.md): the
+emulator's own draw of each servo's motor constant, Coulomb friction and the gears' load share,
+each off by ERROR (a share, default 0) as a bench that found them to that accuracy.
 """
 
 import argparse
@@ -91,6 +94,8 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
     own = load_scenario(scenario_name).control_period_s
     period = own if args.period is None else args.period
     scenario = with_loop(scenario_of(args, period), args.loop, family)
+    if args.commissioned is not None:
+        scenario = commissioned(scenario, args.commissioned)
     with tempfile.TemporaryDirectory() as out:
         scenario.guard.divergence_dir = f"{out}/diverged"
         e_true, e_enc, cpu, misses, n, _ = emulated(scenario, args, period, 0, out)
@@ -103,6 +108,34 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
         "misses": int(misses),
         "periods": int(n),
     }
+
+
+def commissioned(scenario, error: float):
+    """``scenario`` with the crank servo given what each servo's commissioning identifies
+    (docs/servo_bench.md): the emulator's own draw of its motor constant over the catalogue's,
+    its Coulomb friction (sliding, and half the static excess), the gears' load share; each
+    off by ``error`` (a share: the torque constants up and down crank to crank, the friction
+    the other way, the load share up), as a bench that found them to that accuracy."""
+    import dataclasses
+
+    from stewart_drake.control.servo.driver import CrankServoDriver
+    from stewart_drake.station.bus.servo_physics import FRICTION
+    from stewart_drake.station.bus.servos import servo_spec
+
+    if not isinstance(scenario.controller, CrankServoDriver):
+        raise SystemExit("--commissioned needs the crank servo (--loop scenario or host)")
+    bus = scenario.bus
+    drawn = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+    f = drawn.friction
+    sign = np.array([1.0, -1.0] * 3)
+    coulomb = f[:, FRICTION["coulomb_Nm"]] + 0.5 * f[:, FRICTION["stribeck_Nm"]]
+    scenario.controller = dataclasses.replace(
+        scenario.controller,
+        torque_constant_scale=[float(v) for v in drawn.kt_scale * (1 + error * sign)],
+        friction_Nm=[float(v) for v in coulomb * (1 - error * sign)],
+        friction_load_share=float(np.mean(f[:, FRICTION["load_motor"]]) * (1 + error)),
+    )
+    return scenario.validate()
 
 
 def with_loop(scenario, loop: str, family: str):
@@ -168,6 +201,16 @@ def main() -> None:
         metavar="NAME=VALUE",
         help="a scenario setting for every row, after the row's own (repeatable): a controller "
         "variant, e.g. controller.friction_scale=0.5",
+    )
+    parser.add_argument(
+        "--commissioned",
+        type=float,
+        nargs="?",
+        const=0.0,
+        default=None,
+        metavar="ERROR",
+        help="give the crank servo each servo's commissioning (the emulator's draw of its motor "
+        "constant, friction and load share), off by ERROR (a share, default 0)",
     )
     args = parser.parse_args()
     args.motion, args.param, args.breakdown = "breathing", [], False

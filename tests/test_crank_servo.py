@@ -185,15 +185,31 @@ def test_the_compiled_step_is_its_python_form(geometry, d):
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
 
 
-@pytest.mark.parametrize("share", [1.0, 0.5, 0.0])
-def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geometry, share):
+KT = np.array([0.7, 0.9, 1.0, 1.1, 1.3, 1.5])
+
+
+@pytest.mark.parametrize(
+    "share, load, kt", [(1.0, 0.0, None), (0.5, 0.0, None), (0.0, 0.0, None), (0.5, 0.29, KT)]
+)
+def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(
+    geometry, share, load, kt
+):
     """The torque of a first update from the state at t = 0, computed here with the batched
     IK and Jacobian (not the compiled kernels), the estimator's correction, the gain and the
     friction's smoothed sign: ``share`` of it the way the angle error closes, the rest the
-    reference's rate's; and the estimator's prediction for the next period with the command
-    that acts then, the one pending (none at t = 0), not the one just computed."""
+    reference's rate's; the friction ``load`` N m a newton metre of the feed-forward's torque
+    over the Coulomb's 0.2 N m, and the whole divided by each servo's torque per command
+    ``kt``; and the estimator's prediction for the next period with the command that acts
+    then, the one pending (none at t = 0), not the one just computed."""
     rng = np.random.default_rng(7)
-    ctrl = _controller(geometry, d=1, torque_limit_Nm=None, friction_direction_share=share)
+    ctrl = _controller(
+        geometry,
+        d=1,
+        torque_limit_Nm=None,
+        friction_direction_share=share,
+        friction_load_share=load,
+        torque_constant_scale=kt,
+    )
     context = ctrl.CreateDefaultContext()
     x_d, theta_read, T_ff = _inputs(geometry, rng)
     x0 = X_HOME
@@ -220,7 +236,9 @@ def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geom
     k_c = 2 * math.pi * 3.0
     v = w_l - k_c * e_th
     sense = (1 - share) * np.tanh(w_l / 2e-3) + share * np.tanh(v / 2e-3)
-    want = T_ff + 0.2 * sense + 0.04 * w_l + M @ a
+    want = (T_ff + (0.2 + load * np.abs(T_ff)) * sense + 0.04 * w_l + M @ a) / (
+        np.ones(6) if kt is None else kt
+    )
     assert np.max(np.abs(np.tanh(w_l / 2e-3) - np.tanh(v / 2e-3))) > 0.1  # the share shows
     _update(ctrl, context, x_d, theta_read, T_ff)
     T = ctrl.GetOutputPort("T").Eval(context)
@@ -347,6 +365,11 @@ def test_the_start_holds_the_start_pose(geometry):
         (dict(friction_rate_rad_s=0.0), "friction_rate_rad_s"),
         (dict(torque_limit_Nm=-1.0), "torque_limit_Nm"),
         (dict(disturbance_feedback=2.0), "disturbance_feedback"),
+        (dict(friction_load_share=-0.1), "friction_load_share"),
+        (dict(friction_load_share=0.95), "friction_load_share"),
+        (dict(torque_constant_scale=np.full(6, 0.49)), "torque_constant_scale"),
+        (dict(torque_constant_scale=np.full(6, 2.01)), "torque_constant_scale"),
+        (dict(torque_constant_scale=np.ones(5)), "torque_constant_scale"),
     ],
 )
 def test_a_bad_setting_of_the_controller_is_refused_naming_it(geometry, kw, named):
@@ -402,6 +425,22 @@ def test_the_driver_believes_the_servos_catalogue_friction_at_its_scale(geometry
     assert ctrl._c[kernels.LIMIT] == 3.2
 
 
+def test_the_driver_takes_each_servos_commissioning(geometry):
+    """Each crank's friction and torque constant as commissioning gave them reach the step as
+    given (the friction within its bound, half the limit), the load share as a constant."""
+    servo = catalogue_motor("XM430-W350-T").servo
+    friction = [0.05, 0.06, 0.07, 0.08, 0.09, 2.0]
+    driver = CrankServoDriver(
+        friction_Nm=friction, torque_constant_scale=list(KT), friction_load_share=0.29
+    )
+    ctrl = driver.validate(0.01, 1).make(_context(geometry, servo, limit=3.2))
+    np.testing.assert_allclose(
+        ctrl.friction_estimate(ctrl.CreateDefaultContext()), [*friction[:5], 0.5 * 3.2]
+    )
+    np.testing.assert_array_equal(ctrl._kt, KT)
+    assert ctrl.constants["load_share"] == 0.29
+
+
 def test_on_the_ideal_robot_the_driver_believes_no_friction(geometry):
     ctrl = CrankServoDriver().make(_context(geometry, None, d=0))
     np.testing.assert_array_equal(ctrl.friction_estimate(ctrl.CreateDefaultContext()), 0.0)
@@ -416,6 +455,11 @@ def test_on_the_ideal_robot_the_driver_believes_no_friction(geometry):
         (dict(friction_adaptation_s=-1.0), "controller.friction_adaptation_s"),
         (dict(schedule_period_s=0.015), "controller.schedule_period_s"),
         (dict(integral_ratio=float("inf")), "controller.integral_ratio"),
+        (dict(friction_load_share=1.0), "controller.friction_load_share"),
+        (dict(friction_Nm=[0.1] * 5), "controller.friction_Nm"),
+        (dict(friction_Nm=[0.1] * 5 + [-0.1]), "controller.friction_Nm"),
+        (dict(torque_constant_scale=[1.0] * 5 + [2.5]), "controller.torque_constant_scale"),
+        (dict(torque_constant_scale=[1.0] * 7), "controller.torque_constant_scale"),
     ],
 )
 def test_a_bad_option_of_the_driver_is_refused_naming_it(changes, named):
@@ -472,7 +516,7 @@ def test_the_settings_are_what_the_step_runs_with(geometry):
         "h": 0.01, "lead": 0.0, "friction_rate": 2e-3, "k_c": 2 * math.pi * 3.0,
         "adapt": 1 / 2.0, "adapt_min_rate": 10 * 2e-3, "friction_min": 0.0,
         "friction_max": 1.0, "viscous": 0.0, "limit": math.inf, "delay": 1.0, "dob": 0.0,
-        "memory": math.exp(-0.01 / 4.0), "share": 1.0,
+        "memory": math.exp(-0.01 / 4.0), "share": 1.0, "load_share": 0.0,
     }  # fmt: skip
     assert c == pytest.approx(expected, rel=1e-12)
     given = CrankServoController(
@@ -489,8 +533,10 @@ def test_the_settings_are_what_the_step_runs_with(geometry):
         friction_direction_share=0.25,
         disturbance_feedback=1.0,
         schedule_period_s=0.026,
+        friction_load_share=0.29,
     )
     c = given.constants
+    assert c["load_share"] == 0.29
     assert given.steps_per_schedule == 3  # 26 ms rounds to 3 periods
     assert (c["lead"], c["k_c"], c["adapt"], c["viscous"]) == pytest.approx(
         (1.0, 2 * math.pi * 5.0, 0.0, 0.04)

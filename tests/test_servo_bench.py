@@ -378,3 +378,24 @@ def test_commissioning_over_the_bus_recovers_the_emulated_servos_hidden_figures(
     assert m.friction["load_motor"] + m.friction["load_motor_stribeck"] == pytest.approx(
         share, rel=0.1
     )
+
+
+def test_what_the_crank_servo_takes_of_an_identified_servo():
+    """An XM430-W350-T identified as M5 (k 2.5 N m/A at the shaft, the gears losing 0.29 of the
+    motor's torque): its torque per ampere while it drives, 2.5 x 0.71 = 1.775 N m/A, over the
+    e-Manual's stall ratio 4.1 N m / 2.3 A; its Coulomb friction the sliding 0.04 and half the
+    static 0.02; its load share 0.29. An M3 model's single load share is taken the same way; a
+    servo the bus does not drive (the XL330) has none."""
+    from stewart_drake.actuator.bench import crank_servo_settings
+
+    friction = {"coulomb_Nm": 0.04, "stribeck_Nm": 0.02, "load_motor": 0.29}
+    m5 = BenchModel("XM430-W350-T", "m5", 2.5, 5.2, 0.01, 0.0, friction)
+    got = crank_servo_settings(m5)
+    assert got["torque_constant_scale"] == pytest.approx(2.5 * 0.71 / (4.1 / 2.3), rel=1e-12)
+    assert got["friction_Nm"] == pytest.approx(0.05, rel=1e-12)
+    assert got["friction_load_share"] == 0.29
+    m3 = BenchModel("XM430-W350-T", "m3", 2.5, 5.2, 0.01, 0.0, {"coulomb_Nm": 0.04, "load": 0.2})
+    got = crank_servo_settings(m3)
+    assert got["torque_constant_scale"] == pytest.approx(2.5 * 0.8 / (4.1 / 2.3), rel=1e-12)
+    assert (got["friction_Nm"], got["friction_load_share"]) == (0.04, 0.2)
+    assert crank_servo_settings(HIDDEN) is None

@@ -180,6 +180,28 @@ class BenchModel:
         return friction_vector(self.friction)
 
 
+def crank_servo_settings(model: BenchModel) -> dict | None:
+    """What the crank servo takes of one servo's identified model (a scenario's ``controller:
+    !CrankServoDriver``, that servo's crank; docs/robot.md, "A commissioned paper_bus"), or None
+    for a servo the bus does not drive: its torque per ampere while the motor drives, as a share
+    of the bus's catalogue K_t (k (1 - K_l) / K_t: the gears lose K_l of what the motor gives);
+    its Coulomb friction believed, N m (the sliding K_c and half the static excess K_cs: the
+    crank servo's one Coulomb term); and the gears' load share K_l (M5 and M6: the motor's,
+    ``load_motor``; M3 and M4: ``load``; 0 for M1 and M2)."""
+    from ..station.bus.servos import SERVO_SPECS
+
+    spec = SERVO_SPECS.get(model.servo)
+    if spec is None:
+        return None
+    f = model.friction
+    share = f.get("load_motor", f.get("load", 0.0))
+    return {
+        "torque_constant_scale": model.k_Nm_per_A * (1.0 - share) / spec.torque_constant_Nm_per_A,
+        "friction_Nm": f.get("coulomb_Nm", 0.0) + 0.5 * f.get("stribeck_Nm", 0.0),
+        "friction_load_share": share,
+    }
+
+
 def log_arrays(log: BenchLog, servo: BenchServo) -> tuple:
     """The arrays :func:`~stewart_drake.station.bus.servo_physics.pendulum_rollout` takes for
     ``log`` on ``servo``: (t, goal, enabled, bench, servo constants)."""

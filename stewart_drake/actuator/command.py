@@ -169,7 +169,7 @@ def check_same_servo(log, servo: str) -> None:
 
 def _cmd_identify(args) -> int:
     """``servo identify``: the logs read and checked, the search, the table, the file."""
-    from .bench import bench_servo
+    from .bench import bench_servo, crank_servo_settings
     from .identify import identify
     from .model_file import write_model
 
@@ -205,6 +205,12 @@ def _cmd_identify(args) -> int:
         f"ohm, armature {m.armature_kg_m2:.4g} kg m^2, zero {1e3 * m.q_offset_rad:.3g} mrad; "
         "friction " + ", ".join(f"{name} {value:.4g}" for name, value in m.friction.items())
     )
+    crank = crank_servo_settings(m)
+    if crank is not None:
+        print(
+            "  for its crank in the crank servo (controller: !CrankServoDriver, one entry a "
+            "servo): " + ", ".join(f"{name} {value:.4g}" for name, value in crank.items())
+        )
     lines, _ = _table(m, logs, found.logs)
     if m.current_time_constant_s:
         print(f"  its current loop's lag {1e3 * m.current_time_constant_s:.3g} ms")

@@ -15,7 +15,7 @@ from ...base.errors import InvalidConfigError
 from ...robot import kinematics, path_kernels, statics
 from ...robot.geometry import X_HOME, StewartGeometry
 from ...robot.single_pose import leg_constants
-from .design import CrankLoop
+from .design import KT_RANGE, MAX_LOAD_SHARE, CrankLoop
 
 #: The friction fit's memory, s: longer than a breath's half (a fit needs both senses of motion).
 FRICTION_MEMORY_S = 4.0
@@ -69,6 +69,12 @@ class CrankServoController(LeafSystem):
         x_initial, x_dot_initial: (6,) the pose and rate at t = 0 (default home, at rest).
         torque_limit_Nm: the motors' limit (None: none).
         friction_Nm: (6,) the Coulomb friction believed at the start, N m. viscous: N m s/rad.
+        friction_load_share: K_l, the friction believed a newton metre of each crank's
+            feed-forward torque, in [0, ``MAX_LOAD_SHARE``] (:mod:`.kernels`, stage 4; 0:
+            none).
+        torque_constant_scale: (6,) each servo's torque per command as a share of the
+            catalogue's, within ``KT_RANGE`` (its commissioning's; None: 1): the torque is
+            divided by it.
         friction_rate_rad_s: the smoothed sign's crank rate, rad/s.
         friction_adaptation_s: tau_F, s (0: the friction held).
         friction_max_Nm: the estimate's upper bound, N m (and within :data:`FRICTION_RANGE` of
@@ -96,6 +102,8 @@ class CrankServoController(LeafSystem):
         torque_limit_Nm: float | None = None,
         friction_Nm=None,
         viscous: float = 0.0,
+        friction_load_share: float = 0.0,
+        torque_constant_scale=None,
         friction_rate_rad_s: float = 2e-3,
         friction_adaptation_s: float = 2.0,
         friction_max_Nm: float = 1.0,
@@ -143,6 +151,17 @@ class CrankServoController(LeafSystem):
         c[k.SHARE] = as_number("friction_direction_share", friction_direction_share, 0.0, 1.0)
         c[k.MEMORY] = math.exp(-h / max(FRICTION_MEMORY_S, h))
         c[k.DOB] = as_number("disturbance_feedback", disturbance_feedback, 0.0, 1.0)
+        c[k.LOAD_SHARE] = as_number("friction_load_share", friction_load_share, 0.0, MAX_LOAD_SHARE)
+        kt = np.ones(6) if torque_constant_scale is None else np.asarray(
+            torque_constant_scale, dtype=float
+        )  # fmt: skip
+        if kt.shape != (6,) or not np.all((kt >= KT_RANGE[0]) & (kt <= KT_RANGE[1])):
+            raise InvalidConfigError(
+                f"torque_constant_scale must be 6 values in [{KT_RANGE[0]:g}, {KT_RANGE[1]:g}] "
+                f"(each servo's torque per command over the catalogue's), got {kt}"
+            )
+        self._kt = np.array(kt)
+        self._kt.setflags(write=False)
         self._legs = np.array(leg_constants(geometry))
         self._legs.setflags(write=False)
         #: The robot's constants as :func:`~stewart_drake.robot.path_kernels.joint_inertia`
@@ -252,6 +271,7 @@ class CrankServoController(LeafSystem):
             x_d,
             self._theta.Eval(context),
             self._T_ff.Eval(context),
+            self._kt,
             state,
         )
 

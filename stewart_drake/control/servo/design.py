@@ -59,6 +59,13 @@ MAX_DELAY_PERIODS = 20
 #: estimator alike; beyond it the zero-order hold's phase eats the margin).
 MAX_OMEGA_H = 1.0
 
+#: The largest share of a torque the gears may be believed to lose (an efficiency of 0.1).
+MAX_LOAD_SHARE = 0.9
+#: Each servo's torque per command within these factors of the catalogue's: the catalogue's
+#: K_t is the e-Manual's stall ratio, within +-10 % unit to unit, and a commissioning that finds
+#: more than a factor of 2 has found a different motor.
+KT_RANGE = (0.5, 2.0)
+
 
 def crank_model(h: float) -> tuple[np.ndarray, np.ndarray]:
     """(Phi (3, 3), Gamma (3,)) of one crank's [theta, omega, delta] over one period h, s, under

@@ -14,7 +14,7 @@ import numpy as np
 from ...base.checks import as_number, check_multiple
 from ...base.errors import InvalidConfigError
 from ..contract import ControllerContext, ControllerDriver
-from .design import MAX_DELAY_PERIODS, design_loop
+from .design import KT_RANGE, MAX_DELAY_PERIODS, MAX_LOAD_SHARE, design_loop
 
 #: The friction estimate's upper bound as a share of the motors' peak torque.
 FRICTION_MAX_SHARE = 0.5
@@ -51,6 +51,16 @@ class CrankServoDriver(ControllerDriver):
             in [0, 1] (0: the integral removes it).
         schedule_period_s: re-compute the chain's joint-space inertia at the reference this
             often, s (a whole multiple of the control period).
+        friction_load_share: K_l, the friction believed a newton metre of each crank's
+            feed-forward torque: gears lose a share of the torque they carry (Duclusaud et
+            al.'s M3 to M5 classes; 1 - eta, 0.29 for the XM430-W350-T by its e-Manual's stall
+            and no-load figures), in [0, 0.9]; 0: none (the Coulomb friction alone).
+        friction_Nm: each crank's Coulomb friction believed at the start, N m (6 values: its
+            servo's commissioning, docs/servo_bench.md); null: ``friction_scale`` x the
+            catalogue's for all six.
+        torque_constant_scale: each servo's torque per command as a share of the catalogue's
+            (6 values in [0.5, 2]: its commissioning's motor constant over the catalogue's);
+            null: the catalogue's for all six.
     """
 
     bandwidth_hz: float = 3.0
@@ -63,6 +73,9 @@ class CrankServoDriver(ControllerDriver):
     schedule_period_s: float = 0.1
     friction_direction_hz: float = 3.0
     friction_direction_share: float = 1.0
+    friction_load_share: float = 0.0
+    friction_Nm: list[float] | None = None
+    torque_constant_scale: list[float] | None = None
 
     #: No weights omega: no input for a tuner.
     takes_omega: ClassVar[bool] = False
@@ -86,6 +99,16 @@ class CrankServoDriver(ControllerDriver):
         as_number(f"{prefix}friction_direction_share", self.friction_direction_share, 0.0, 1.0)
         as_number(f"{prefix}friction_adaptation_s", self.friction_adaptation_s, 0.0, 1e4)
         as_number(f"{prefix}disturbance_feedback", self.disturbance_feedback, 0.0, 1.0)
+        as_number(f"{prefix}friction_load_share", self.friction_load_share, 0.0, MAX_LOAD_SHARE)
+        for name, lo, hi in (("friction_Nm", 0.0, 5.0), ("torque_constant_scale", *KT_RANGE)):
+            values = getattr(self, name)
+            if values is not None and (
+                np.shape(values) != (6,) or not all(lo <= float(v) <= hi for v in values)
+            ):
+                raise InvalidConfigError(
+                    f"{prefix}{name} must be 6 numbers in [{lo:g}, {hi:g}], one a crank (its "
+                    f"servo's commissioning), or null; got {values!r:.80}"
+                )
         check_multiple(
             f"{prefix}schedule_period_s",
             self.schedule_period_s,
@@ -124,6 +147,11 @@ class CrankServoDriver(ControllerDriver):
         limit = context.torque_limit_Nm
         bound = min(v for v in (peak, limit, np.inf) if v is not None)
         friction_max = FRICTION_MAX_SHARE * bound if np.isfinite(bound) else 5.0 * coulomb
+        friction = (
+            np.full(6, min(self.friction_scale * coulomb, friction_max))
+            if self.friction_Nm is None
+            else np.minimum(np.asarray(self.friction_Nm, dtype=float), friction_max)
+        )
         # The torque computed at the sample acts over one period d periods on (the simulated
         # station's delay line and the bus's driver write at a period's start; with no delay,
         # from the next plant step): its middle, from the reference's own instant (the sample
@@ -138,8 +166,10 @@ class CrankServoDriver(ControllerDriver):
             x_initial=context.x_initial,
             x_dot_initial=context.x_dot_initial,
             torque_limit_Nm=limit,
-            friction_Nm=np.full(6, min(self.friction_scale * coulomb, friction_max)),
+            friction_Nm=friction,
             viscous=viscous,
+            friction_load_share=self.friction_load_share,
+            torque_constant_scale=self.torque_constant_scale,
             friction_rate_rad_s=self.friction_rate_rad_s,
             friction_adaptation_s=self.friction_adaptation_s,
             friction_max_Nm=friction_max,

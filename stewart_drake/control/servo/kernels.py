@@ -12,13 +12,16 @@ What one period does (the design: :mod:`.design`; the controller: :mod:`.control
 3. the feedback acceleration a = -K [z, e_theta, e_omega, pending], optionally less the
    estimated disturbance, and its torque M a (M the chain's joint-space inertia at the
    reference, re-scheduled by the controller);
-4. the torque: the reference's feed-forward + the Coulomb friction the controller believes,
-   F_i [(1 - s) tanh(omega_d,i / r) + s tanh(v_i / r)] (r the friction rate), a share s in the
+4. the torque: the reference's feed-forward + the friction the controller believes, (F_i +
+   K_l |T_ff,i|) [(1 - s) tanh(omega_d,i / r) + s tanh(v_i / r)] (F_i Coulomb's, K_l the
+   share of the torque the gears carry that they lose, on the feed-forward's torque: Duclusaud
+   et al.'s M3 class, docs/servo_bench.md; r the friction rate), a share s in the
    direction v_i = omega_d,i(t + lead) - k_c e_theta,i the crank must go to close its error,
    the rest in the reference's sense, both where the torque will act (a crank at rest is pushed
    with s F_i at most: less than the friction it has if it has more than s of what is believed,
    so the push cannot start a relay's oscillation), + the viscous friction + the feedback's
-   torque; clipped to the motors' limit;
+   torque; divided by each servo's torque per command as a share of the catalogue's (its
+   commissioning's; 1 when none was measured) and clipped to the motors' limit;
 5. integral (stopped while a crank's torque is clipped: anti-windup), the friction estimate's
    adaptation (while the reference moves the crank, F_i moves by h / tau_F times the friction
    the feed-forward misses, :func:`friction_error`: the part of the feedback torque that flips
@@ -59,6 +62,7 @@ CONSTANTS = (
     "dob",  # weight of the estimated disturbance in the command (0: integral action only)
     "memory",  # the friction regression's forgetting factor a period, exp(-h / tau_m)
     "share",  # the share of the friction fed in the sense that closes the angle error
+    "load_share",  # the gears' friction a newton metre of the feed-forward's torque, K_l
 )
 (
     H,
@@ -75,6 +79,7 @@ CONSTANTS = (
     DOB,
     MEMORY,
     SHARE,
+    LOAD_SHARE,
 ) = range(len(CONSTANTS))
 
 #: The state vector's parts, (start, size) for a delay d (:func:`layout`): the predicted
@@ -159,7 +164,7 @@ def friction_error(state, k, memory, tau_fb, omega):
 
 
 @_njit
-def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
+def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, kt, state):
     """One control period (module docstring) over the controller's ``state`` (its layout:
     :func:`layout`), in place: the torque command is ``state``'s "T" part.
 
@@ -169,7 +174,8 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
             the robot's leg constants (the encoders' zero errors last). M: (6, 6) joint-space
             inertia, kg m^2. J_inv: (6, 6) d x / d theta at the reference, for the pose error.
         x_d: (18,) reference pose, rate, acceleration at the sample. theta_read: (6,) encoder
-            angles, rad. T_ff: (6,) the reference's feed-forward torques, N m.
+            angles, rad. T_ff: (6,) the reference's feed-forward torques, N m. kt: (6,) each
+            servo's torque per command as a share of the catalogue's (no unit).
     Returns:
         whether the reference's IK closed (if not, the torque and the state are kept).
     """
@@ -215,7 +221,8 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
         F = state[i_f + i]
         sense = (1.0 - c[SHARE]) * math.tanh(wl[i] / c[FRICTION_RATE])
         sense += c[SHARE] * math.tanh(v / c[FRICTION_RATE])
-        T = T_ff[i] + F * sense + c[VISCOUS] * wl[i] + tau_fb
+        T = T_ff[i] + (F + c[LOAD_SHARE] * abs(T_ff[i])) * sense + c[VISCOUS] * wl[i]
+        T = (T + tau_fb) / kt[i]
         clipped = False
         if T > limit:
             T, clipped = limit, True
@@ -269,8 +276,10 @@ def warm_up() -> None:
     Phi, M, J = np.eye(3), np.eye(6), np.eye(6)
     for a in (c, K, L, Phi, Gam):
         a.setflags(write=False)
+    kt = np.ones(6)
+    kt.setflags(write=False)
     state = np.zeros(layout(1)["size"].stop)
-    step(c, K, L, Phi, Gam, legs, M, J, np.zeros(18), np.zeros(6), np.zeros(6), state)
+    step(c, K, L, Phi, Gam, legs, M, J, np.zeros(18), np.zeros(6), np.zeros(6), kt, state)
     # The servos' own loop's goals (goal_stream.CrankGoalStreamer), called from Python.
     crank_reference(legs, np.zeros(18), 0.01, np.empty(6), np.empty(6))
     # The inertia's re-schedule, which the controller calls every few periods with the robot's
