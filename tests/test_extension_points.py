@@ -99,7 +99,9 @@ def test_a_headerless_format_added_to_its_table_reaches_the_commands(tmp_path, c
     argv = ["check", str(trace), "--out", str(tmp_path / "o")]
 
     assert main(argv) == 2
-    assert "no header line and 4 columns" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no header line and 4 columns" in err
+    assert "phantom: 7 columns" in err and "surrogate: 2 columns" in err
     try:
         main([*argv, "--format", "tracker4"])
     except SystemExit as end:  # argparse refuses a choice it does not have
@@ -114,6 +116,12 @@ def test_a_headerless_format_added_to_its_table_reaches_the_commands(tmp_path, c
         assert "Trace: tracker.txt (tracker4 format, no header, separated by spaces): 200 " in out
         assert "samples at 10 Hz over 19.9 s; SI [mm] -> +X, LR [mm] -> +Y, AP [mm] -> +Z" in out
         assert "OK: trajectory validated" in out
+    five = tmp_path / "five.txt"  # a width no row has: the refusal names the new row too
+    five.write_text("\n".join(f"{r} 0.0" for r in rows) + "\n")
+    assert main(["check", str(five), "--out", str(tmp_path / "o5")]) == 2
+    err = capsys.readouterr().err
+    assert "no header line and 5 columns" in err
+    assert f"tracker4: 4 columns, {columns}" in err
 
 
 def _encoder_floor(name: str) -> dict:

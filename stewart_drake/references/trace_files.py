@@ -208,9 +208,13 @@ def read_trace_table(
         width = len(rows[0]) - 1
         kind = format if format != "auto" else headerless_format_of_width(width)
         if kind is None:
+            known = "; ".join(
+                f"{name}: {len(cols.split(','))} columns, {cols}"
+                for name, cols in HEADERLESS_FORMATS.items()
+            )
             raise InvalidConfigError(
-                f"{path}: no header line and {width} columns, neither the phantom format (7: "
-                f"{PHANTOM_COLUMNS}) nor a surrogate (2: time, displacement); {remedy}"
+                f"{path}: no header line and {width} columns, which no format without a header "
+                f"has ({known}); {remedy}"
             )
         header = [c.strip() for c in HEADERLESS_FORMATS[kind].split(",")]
         how = f"{kind} format, no header"
