@@ -446,6 +446,16 @@ def test_on_the_ideal_robot_the_driver_believes_no_friction(geometry):
     np.testing.assert_array_equal(ctrl.friction_estimate(ctrl.CreateDefaultContext()), 0.0)
 
 
+def test_the_commissionings_edges_are_accepted():
+    """A friction of 0 and of 5 N m, torque constants at 0.5 and 2, and load shares of 0 and
+    0.9 are each within what the driver takes (the refusals above are just beyond them)."""
+    for changes in (
+        dict(friction_Nm=[0.0] * 3 + [5.0] * 3, friction_load_share=0.9),
+        dict(torque_constant_scale=[0.5] * 3 + [2.0] * 3, friction_load_share=0.0),
+    ):
+        dataclasses.replace(CrankServoDriver(), **changes).validate(0.01, 1)
+
+
 @pytest.mark.parametrize(
     "changes, named",
     [
@@ -456,6 +466,8 @@ def test_on_the_ideal_robot_the_driver_believes_no_friction(geometry):
         (dict(schedule_period_s=0.015), "controller.schedule_period_s"),
         (dict(integral_ratio=float("inf")), "controller.integral_ratio"),
         (dict(friction_load_share=1.0), "controller.friction_load_share"),
+        (dict(friction_load_share=-0.01), "controller.friction_load_share"),
+        (dict(friction_Nm=[0.1] * 5 + [5.01]), "controller.friction_Nm"),
         (dict(friction_Nm=[0.1] * 5), "controller.friction_Nm"),
         (dict(friction_Nm=[0.1] * 5 + [-0.1]), "controller.friction_Nm"),
         (dict(torque_constant_scale=[1.0] * 5 + [2.5]), "controller.torque_constant_scale"),
