@@ -347,6 +347,21 @@ def test_excite_as_a_user_runs_it_on_the_emulator(tmp_path, capsys):
     said = capsys.readouterr().out
     assert f"wrote {out}" in said and "the emulated servo (seed 2) hid: k " in said
     assert read_bench_log(out).mode == "current"
+    # identified, a bus servo's model says what its crank in the crank servo takes: k (1 - K_l)
+    # over the e-Manual's stall ratio 4.1 N m / 2.3 A, the sliding friction and half the static
+    # excess, K_l, as the model file holds them
+    found = tmp_path / "m5.json"
+    argv = ["servo", "identify", str(out), "--servo", "XM430-W350-T", "--model-class", "m5"]
+    assert cli.main([*argv, "--generations", "2", "--no-progress", "--out", str(found)]) == 0
+    said = capsys.readouterr().out
+    data = json.loads(found.read_text())
+    f, k = data["friction"], data["k_Nm_per_A"]
+    line = next(x for x in said.splitlines() if "for its crank in the crank servo" in x)
+    assert line.endswith(
+        f"torque_constant_scale {k * (1 - f['load_motor']) / (4.1 / 2.3):.4g}, friction_Nm "
+        f"{f['coulomb_Nm'] + 0.5 * f['stribeck_Nm']:.4g}, friction_load_share "
+        f"{f['load_motor']:.4g}"
+    )
     assert cli.main(["servo", "excite", "--mass", "1", "--length", "0.1", "--out", str(out)]) == 2
     assert "give the servo's --port, or --emulate [SEED]" in capsys.readouterr().err
     argv = ["servo", "excite", "--emulate", "--mass", "1", "--length", "0.1", "--amplitude", "2"]
