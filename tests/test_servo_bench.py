@@ -354,8 +354,8 @@ def test_excite_as_a_user_runs_it_on_the_emulator(tmp_path, capsys):
     argv = ["servo", "identify", str(out), "--servo", "XM430-W350-T", "--model-class", "m5"]
     assert cli.main([*argv, "--generations", "2", "--no-progress", "--out", str(found)]) == 0
     said = capsys.readouterr().out
-    data = json.loads(found.read_text())
-    f, k = data["friction"], data["k_Nm_per_A"]
+    model, _ = read_model(found)
+    f, k = model.friction, model.k_Nm_per_A
     line = next(x for x in said.splitlines() if "for its crank in the crank servo" in x)
     assert line.endswith(
         f"torque_constant_scale {k * (1 - f['load_motor']) / (4.1 / 2.3):.4g}, friction_Nm "

@@ -152,16 +152,15 @@ class CrankServoController(LeafSystem):
         c[k.MEMORY] = math.exp(-h / max(FRICTION_MEMORY_S, h))
         c[k.DOB] = as_number("disturbance_feedback", disturbance_feedback, 0.0, 1.0)
         c[k.LOAD_SHARE] = as_number("friction_load_share", friction_load_share, 0.0, MAX_LOAD_SHARE)
-        kt = np.ones(6) if torque_constant_scale is None else np.asarray(
-            torque_constant_scale, dtype=float
-        )  # fmt: skip
+        # a copy (np.array), made read-only below: the caller's array is not frozen
+        kt = np.ones(6) if torque_constant_scale is None else np.array(torque_constant_scale, float)
         if kt.shape != (6,) or not np.all((kt >= KT_RANGE[0]) & (kt <= KT_RANGE[1])):
             raise InvalidConfigError(
                 f"torque_constant_scale must be 6 values in [{KT_RANGE[0]:g}, {KT_RANGE[1]:g}] "
                 f"(each servo's torque per command over the catalogue's), got {kt}"
             )
-        self._kt = np.array(kt)
-        self._kt.setflags(write=False)
+        kt.setflags(write=False)
+        self._kt = kt
         self._legs = np.array(leg_constants(geometry))
         self._legs.setflags(write=False)
         #: The robot's constants as :func:`~stewart_drake.robot.path_kernels.joint_inertia`
