@@ -20,7 +20,8 @@ text per block, compared with ``tests/golden/verify/BLOCK.txt``:
   whether pypdfium2 is installed or not), the date aside.
 
 The golden files are compared byte for byte where they were written (their first line names the
-Python, numpy, scipy and matplotlib they were written with). Elsewhere numpy's and scipy's own
+Python, numpy, scipy and matplotlib they were written with, and the CPU's SIMD kernels numpy
+dispatches to). Elsewhere numpy's and scipy's own
 arithmetic moves the last bits of a float (an FFT summed in another order: 0.00703124999999999
 against 0.007031249999999993) and, on a rounding edge, a printed digit (2.812 mm against 2.813):
 there every word must still be the same, every integer the same, and every other number within
@@ -62,15 +63,25 @@ _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 
 def environment() -> str:
-    """The first line of a golden file: where it is compared byte for byte."""
+    """The first line of a golden file: where it is compared byte for byte. The CPU counts:
+    the same numpy and scipy sum and transform in another order where numpy dispatches to
+    other SIMD instructions (an AVX-512 machine printed 0.0028124999999999995 where the
+    golden's, written on another, held 0.0028125000000000003)."""
     import platform
 
     import matplotlib
     import scipy
 
+    try:  # numpy's own record of what it dispatches to (np.show_runtime reads the same)
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+        simd = next((f for f in reversed(__cpu_dispatch__) if __cpu_features__.get(f)), "none")
+    except ImportError:
+        simd = "unknown"
     return (
         f"# written with Python {platform.python_version()}, numpy {np.__version__}, "
-        f"scipy {scipy.__version__}, matplotlib {matplotlib.__version__}"
+        f"scipy {scipy.__version__}, matplotlib {matplotlib.__version__}, on "
+        f"{platform.machine()} with numpy's {simd} kernels"
     )
 
 
