@@ -456,6 +456,32 @@ def test_the_commissionings_edges_are_accepted():
         dataclasses.replace(CrankServoDriver(), **changes).validate(0.01, 1)
 
 
+def test_robot_says_when_the_crank_servo_has_no_commissioning(capsys):
+    """``robot`` names the missing commissioning on the catalogue's figures alone, and on
+    nothing else: any one of the three settings given, or another controller, says nothing."""
+    from types import SimpleNamespace
+
+    from stewart_drake.control.lqi.driver import LqiDriver
+    from stewart_drake.live.command import _note_commissioning
+
+    def said(controller) -> str:
+        _note_commissioning(SimpleNamespace(controller=controller))
+        return capsys.readouterr().err
+
+    assert not CrankServoDriver().commissioned
+    assert "no commissioning" in said(CrankServoDriver())
+    assert "servo identify" in said(CrankServoDriver(friction_scale=0.5))
+    for changes in (
+        dict(friction_Nm=[0.1] * 6),
+        dict(torque_constant_scale=[1.0] * 6),
+        dict(friction_load_share=0.01),
+    ):
+        driver = dataclasses.replace(CrankServoDriver(), **changes)
+        assert driver.commissioned, changes
+        assert said(driver) == "", changes
+    assert said(LqiDriver()) == ""
+
+
 @pytest.mark.parametrize(
     "changes, named",
     [

@@ -81,6 +81,9 @@ def test_a_robot_run_compiles_and_loads_nothing_once_the_torque_is_on(tmp_path):
     assert code == 0, (out, err)
     assert "torque on" in err and LATE not in out + err, (out, err)
     assert "the reference ran to its end" in out + err
+    # The shipped scenario's crank servo carries no commissioning, and the emulator's servos
+    # are drawn: the run says so.
+    assert "crank servo believes the catalogue's" in err, err
     # Its encoder log says its servos were the emulator's, as the run printed them.
     bus = read_encoder_log(next((tmp_path / "out").glob("*_encoders.csv")))["bus"]
     assert bus.startswith(EMULATED_BUS) and bus[len(EMULATED_BUS) :] in out, (bus, out)

@@ -394,6 +394,8 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
 
         if args.calibrate is not None or args.dry_run:
             return _read_only(args, scenario)
+        if emulator is None or emulator.servos.realistic:
+            _note_commissioning(scenario)
         meshcat = None
         if args.meshcat or args.teleop:
             from pydrake.geometry import Meshcat
@@ -437,6 +439,22 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
+
+
+def _note_commissioning(scenario) -> None:
+    """A line on stderr when the crank servo drives servos as they are (real, or the realistic
+    emulator's) on the catalogue's figures alone: it meets its bounds only commissioned."""
+    from ..control.servo.driver import CrankServoDriver
+
+    if isinstance(scenario.controller, CrankServoDriver) and not scenario.controller.commissioned:
+        print(
+            "note: the crank servo believes the catalogue's torque constant "
+            "and friction (no commissioning in the scenario); on servos as they are some draws "
+            "miss its bounds: `stewart-drake servo identify` gives each servo's values for the "
+            'controller section (docs/robot.md, "A commissioned paper_bus")',
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def _read_only(args, scenario) -> int:

@@ -132,6 +132,18 @@ class CrankServoDriver(ControllerDriver):
             raise InvalidConfigError(f"{prefix}{err}") from None
         return self
 
+    @property
+    def commissioned(self) -> bool:
+        """Whether the scenario gives any of each servo's commissioning (``friction_Nm``,
+        ``torque_constant_scale``, a ``friction_load_share`` above 0); False: the catalogue's
+        figures alone, which servos as they are leave outside the crank servo's bounds on some
+        draws (docs/robot.md, "A commissioned paper_bus")."""
+        return (
+            self.friction_Nm is not None
+            or self.torque_constant_scale is not None
+            or self.friction_load_share > 0.0
+        )
+
     def make(self, context: ControllerContext):
         """The crank servo for the Diagram that ``context`` describes: designed for its period
         and delay, the servo's friction (``context.servo``; none on the ideal robot) believed at
