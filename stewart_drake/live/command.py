@@ -394,8 +394,6 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
 
         if args.calibrate is not None or args.dry_run:
             return _read_only(args, scenario)
-        if emulator is None or emulator.servos.realistic:
-            _note_commissioning(scenario)
         meshcat = None
         if args.meshcat or args.teleop:
             from pydrake.geometry import Meshcat
@@ -436,14 +434,17 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
         if emulator is not None:
             emulator.close()
     _print_run(run, scenario, held.get("sd"), emulator)
+    if emulator is None or emulator.servos.realistic:
+        _note_commissioning(scenario)
     signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
 
 
 def _note_commissioning(scenario) -> None:
-    """A line on stderr when the crank servo drives servos as they are (real, or the realistic
-    emulator's) on the catalogue's figures alone: it meets its bounds only commissioned."""
+    """A line on stderr, after a session's figures, when the crank servo drove servos as they
+    are (real, or the realistic emulator's) on the catalogue's figures alone: it meets its
+    bounds only commissioned. Not before: a refusal stays one line."""
     from ..control.servo.driver import CrankServoDriver
 
     if isinstance(scenario.controller, CrankServoDriver) and not scenario.controller.commissioned:
