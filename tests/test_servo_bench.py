@@ -217,6 +217,24 @@ def test_an_unknown_servo_or_class_is_refused_before_the_search(bench_logs):
         identify([], SERVO)
 
 
+def test_a_search_has_settled_when_its_best_error_stops_falling():
+    """Settled: the best error fell by under 1 % of itself over the last tenth of the search
+    (at least 10 generations); a search that short cannot tell."""
+    from stewart_drake.actuator.identify import has_settled, settling_window
+
+    assert (settling_window(50), settling_window(150), settling_window(400)) == (10, 15, 40)
+    flat = [2.0] * 30 + [1.0] * 20
+    assert has_settled(flat)
+    assert not has_settled([1.0] * 40 + [0.98] * 10)  # 2 % over the last 10 of 50
+    assert has_settled([1.0] * 39 + [0.98] * 11)  # the same fall 11 back: outside them
+    assert has_settled([1.0] * 40 + [0.991] * 10)  # 0.9 %
+    assert not has_settled([1.0] * 40 + [0.989] * 10)  # 1.1 %
+    # 400 generations: judged over the last 40, so a fall 30 back counts, one 50 back not
+    assert not has_settled([1.0] * 370 + [0.9] * 30)
+    assert has_settled([1.0] * 350 + [0.9] * 50)
+    assert not has_settled([1.0] * 10) and not has_settled([])
+
+
 # -- the command ------------------------------------------------------------------------------
 
 
@@ -356,6 +374,13 @@ def test_excite_as_a_user_runs_it_on_the_emulator(tmp_path, capsys):
     said = capsys.readouterr().out
     model, _ = read_model(found)
     f, k = model.friction, model.k_Nm_per_A
+    # two generations cannot tell: the command says so, and what to do
+    assert (
+        "the search had not settled: its 2 generations are too few to tell (it takes "
+        "over 10)" in said
+    )
+    assert "run it again with more --generations" in said
+    assert json.loads(found.read_text())["search_settled"] is False
     line = next(x for x in said.splitlines() if "for its crank in the crank servo" in x)
     assert line.endswith(
         f"torque_constant_scale {k * (1 - f['load_motor']) / (4.1 / 2.3):.4g}, friction_Nm "
@@ -367,6 +392,50 @@ def test_excite_as_a_user_runs_it_on_the_emulator(tmp_path, capsys):
     argv = ["servo", "excite", "--emulate", "--mass", "1", "--length", "0.1", "--amplitude", "2"]
     assert cli.main([*argv, "--out", str(out)]) == 2
     assert "--amplitude 2: at most 1" in capsys.readouterr().err
+
+
+def test_one_servo_of_a_drawn_set_is_that_servo_as_drawn_among_six():
+    from stewart_drake.station.bus.emulator_config import EmulatorConfig
+    from stewart_drake.station.bus.servos import servo_spec
+
+    six = EmulatorConfig(seed=5).draw(servo_spec("XM430-W350-T"))
+    for i in (0, 5):
+        one = six.one(i)
+        for name in ("kt_scale", "k_Nm_per_A", "resistance_ohm", "inl_counts", "inl_phase"):
+            np.testing.assert_array_equal(getattr(one, name), getattr(six, name)[i : i + 1])
+        np.testing.assert_array_equal(one.friction, six.friction[i : i + 1])
+        assert (one.rotor_inertia_scale, one.seed) == (six.rotor_inertia_scale, 5)
+    assert six.one(1).k_Nm_per_A[0] != six.one(2).k_Nm_per_A[0]
+    for i in (-1, 6):
+        with pytest.raises(InvalidConfigError, match="a set of 6: choose 1 to 6"):
+            six.one(i)
+
+
+def test_excite_takes_a_crank_of_the_robots_own_draw(tmp_path, capsys):
+    """``--crank I`` excites the servo that ``robot --emulate`` puts at crank I for the same
+    seed (the robot's draw taken as the emulator's process takes it, from the scenario), and
+    is refused in one line outside 1-6 or without ``--emulate``."""
+    pytest.importorskip("dynamixel_sdk", reason="the robot extra: pip install -e '.[robot]'")
+    from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
+    from stewart_drake.station.bus.servos import servo_spec
+
+    scenario = load_scenario(ROBOT_SCENARIO, ["emulator.seed=2"])
+    bus = scenario.bus
+    robot = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+    out = tmp_path / "crank3.json"
+    argv = ["servo", "excite", "--emulate", "2", "--mass", "1", "--length", "0.15"]
+    assert cli.main([*argv, "--crank", "3", "--seconds", "1", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert f"(seed 2, the robot's crank 3) hid: k {robot.k_Nm_per_A[2]:.4g} N m/A" in said
+    assert f"(seed 2) hid: k {robot.k_Nm_per_A[2]:.4g} " not in said
+    for crank in ("0", "7"):
+        with pytest.raises(SystemExit) as stopped:
+            cli.main([*argv, "--crank", crank, "--out", str(out)])
+        err = capsys.readouterr().err
+        assert stopped.value.code == 2 and f"--crank: invalid choice: {crank}" in err, err
+    no_emulator = ["servo", "excite", "--port", "/dev/null", "--mass", "1", "--length", "0.15"]
+    assert cli.main([*no_emulator, "--crank", "2", "--out", str(out)]) == 2
+    assert "only with --emulate" in capsys.readouterr().err
 
 
 @pytest.mark.slow

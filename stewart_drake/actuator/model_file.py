@@ -58,6 +58,8 @@ def write_model(path, identified: Identified, seed: int) -> Path:
         "identified_on": list(identified.logs),
         "mae_rad": identified.mae_rad,
         "seed": int(seed),
+        "search_settled": identified.settled,
+        "search_generations": identified.generations,
     }
     path = Path(path)
     atomic_write(path, lambda f: f.write((json.dumps(data, indent=1) + "\n").encode()))

@@ -26,7 +26,7 @@ Drake's YAML loader reads this dataclass's field annotations: this module must n
 """
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -353,6 +353,22 @@ class EmulatedServos:
             f"counts, non-linearity up to {self.inl_counts.max():.2g} counts; bus: return delay "
             f"{self.return_delay_us:g} us (as the table starts), latency timer "
             f"{self.latency_timer_ms:g} ms, jitter {self.reply_jitter_us:g} us"
+        )
+
+    def one(self, i: int) -> "EmulatedServos":
+        """The set's servo ``i`` (0-based) alone, as drawn among its ``n``: a set of one, for the
+        bench that commissions it before it goes into the robot.
+
+        Raises:
+            InvalidConfigError: ``i`` not one of the set's.
+        """
+        n = len(self.k_Nm_per_A)
+        if not 0 <= i < n:
+            raise InvalidConfigError(f"servo {i + 1} of a set of {n}: choose 1 to {n}")
+        each = ("kt_scale", "friction_scale", "k_Nm_per_A", "resistance_ohm", "friction")
+        return replace(
+            self,
+            **{name: getattr(self, name)[i : i + 1] for name in (*each, "inl_counts", "inl_phase")},
         )
 
     def departs(self) -> bool:
