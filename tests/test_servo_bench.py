@@ -11,7 +11,7 @@ import pytest
 
 from stewart_drake.actuator.bench import BenchModel, errors, replay
 from stewart_drake.actuator.bench_log import BenchLog, read_bench_log, write_bench_log
-from stewart_drake.actuator.identify import identify
+from stewart_drake.actuator.identify import Identified, identify
 from stewart_drake.actuator.model_file import read_model, write_model
 from stewart_drake.base.errors import CorruptFileError, InvalidConfigError
 from stewart_drake.cli import main as cli
@@ -233,6 +233,19 @@ def test_a_search_has_settled_when_its_best_error_stops_falling():
     assert not has_settled([1.0] * 370 + [0.9] * 30)
     assert has_settled([1.0] * 350 + [0.9] * 50)
     assert not has_settled([1.0] * 10) and not has_settled([])
+    # or a fall under a tenth of an encoder count (1e-3 rad here), whatever its share
+    small = [1e-3] * 40 + [0.9e-3] * 10  # 10 %, 1e-4 rad
+    assert not has_settled(small) and not has_settled(small, count_rad=0.99e-3)
+    assert has_settled(small, count_rad=1.01e-3)
+    # what the command says of each
+    from stewart_drake.actuator.command import _search_line
+
+    settled = Identified(HIDDEN, 1e-3, 1, ("a",), settled=True, generations=400)
+    assert _search_line(settled).startswith("the search had settled: over its last 40 of 400")
+    going = Identified(HIDDEN, 1e-3, 1, ("a",), settled=False, generations=150)
+    line = _search_line(going)
+    assert "over its last 15 of 150 generations its best error still fell by over 1%" in line
+    assert line.endswith("run it again with more --generations")
 
 
 # -- the command ------------------------------------------------------------------------------

@@ -234,20 +234,21 @@ def _cmd_identify(args) -> int:
 
 def _search_line(found) -> str:
     """Whether the search had settled, and what to do when it had not."""
-    from .identify import SETTLED_SHARE, settling_window
+    from .identify import SETTLED_COUNTS, SETTLED_SHARE, settling_window
 
     n = found.generations
     window = settling_window(n)
+    share, count = f"{SETTLED_SHARE:.0%} of itself", f"{SETTLED_COUNTS:g} of an encoder count"
     if found.settled:
         return (
-            f"the search had settled: its best error fell by under {SETTLED_SHARE:.0%} over "
-            f"its last {window} of {n} generations"
+            f"the search had settled: over its last {window} of {n} generations its best "
+            f"error fell by under {share} or under {count}"
         )
     why = (
         f"its {n} generations are too few to tell (it takes over {window})"
         if n <= window
-        else f"its best error still fell by {SETTLED_SHARE:.0%} or more over its last {window} "
-        f"of {n} generations"
+        else f"over its last {window} of {n} generations its best error still fell by over "
+        f"{share} and over {count}"
     )
     return (
         f"the search had not settled: {why}, and the figures above can be far from the servo's "
