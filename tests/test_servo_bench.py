@@ -432,15 +432,29 @@ def test_excite_takes_a_crank_of_the_robots_own_draw(tmp_path, capsys):
     from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
     from stewart_drake.station.bus.servos import servo_spec
 
-    scenario = load_scenario(ROBOT_SCENARIO, ["emulator.seed=2"])
-    bus = scenario.bus
-    robot = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+    def robot(*sets):
+        scenario = load_scenario(ROBOT_SCENARIO, ["emulator.seed=2", *sets])
+        bus = scenario.bus
+        return scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+
     out = tmp_path / "crank3.json"
     argv = ["servo", "excite", "--emulate", "2", "--mass", "1", "--length", "0.15"]
     assert cli.main([*argv, "--crank", "3", "--seconds", "1", "--out", str(out)]) == 0
     said = capsys.readouterr().out
-    assert f"(seed 2, the robot's crank 3) hid: k {robot.k_Nm_per_A[2]:.4g} N m/A" in said
-    assert f"(seed 2) hid: k {robot.k_Nm_per_A[2]:.4g} " not in said
+    drawn = robot()
+    k = drawn.k_Nm_per_A[2]
+    assert f"(seed 2, the robot's crank 3) hid: k {k:.4g} N m/A" in said
+    # a departure set as robot takes it reaches the servo excited: its motor constant 1.3 x the
+    # model's where the draw had it kt_scale x
+    strong = robot("emulator.kt_scale=1.3").k_Nm_per_A[2]
+    assert strong / k == pytest.approx(1.3 / drawn.kt_scale[2], rel=1e-9)
+    sets = ["--set", "emulator.kt_scale=1.3", "--crank", "3", "--seconds", "1"]
+    assert cli.main([*argv, *sets, "--out", str(out)]) == 0
+    assert f"crank 3) hid: k {strong:.4g} N m/A" in capsys.readouterr().out
+    # the robot's servos must be the ones named
+    other = ["--crank", "1", "--scenario", "phantom_bus", "--out", str(out)]
+    assert cli.main([*argv, *other]) == 2
+    assert "phantom_bus has PM42-010-S260-R servos, not XM430-W350-T" in capsys.readouterr().err
     for crank in ("0", "7"):
         with pytest.raises(SystemExit) as stopped:
             cli.main([*argv, "--crank", crank, "--out", str(out)])

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..execution.options import int_at_least, positive_float
+from ..execution.options import add_scenario_arguments, int_at_least, positive_float
 
 
 def register(sub) -> None:
@@ -103,8 +103,16 @@ def _add_excite(verbs) -> None:
         choices=range(1, 7),
         metavar="I",
         help="with --emulate: the servo of crank I (1-6) of the robot emulator's draw of SEED "
-        "(robot --emulate's, emulator.seed), to commission the robot's own servos (default: a "
-        "servo drawn alone)",
+        "(robot --emulate --scenario's, emulator.seed=SEED), to commission the robot's own "
+        "servos (default: a servo drawn alone)",
+    )
+    from ..run.scenario_io import ROBOT_SCENARIO
+
+    add_scenario_arguments(
+        ex,
+        "with --crank: the robot whose emulator draws the servos (its 'emulator:' section, "
+        "--emulate's SEED for its seed; --set emulator.kt_scale=1.3 as robot takes it)",
+        ROBOT_SCENARIO,
     )
     ex.add_argument("--out", required=True, help="the bench log to write (JSON)")
     ex.set_defaults(func=_cmd_excite, out_is_file=True)
@@ -316,10 +324,10 @@ def _cmd_excite(args) -> int:
         from ..station.bus.emulator_config import EmulatorConfig
         from ..station.bus.servo_models import BenchServos
 
-        config = EmulatorConfig(seed=args.emulate)
-        hidden = (
-            config.draw(spec, 1) if args.crank is None else config.draw(spec).one(args.crank - 1)
-        )
+        if args.crank is None:
+            hidden = EmulatorConfig(seed=args.emulate).draw(spec, 1)
+        else:
+            hidden = _robot_servo(args, spec)
         backend = BenchServos(hidden, args.mass, args.length)
         emulated = BusEmulator([args.id], args.servo, backend=backend, command_step_s=period)
         emulated.start()
@@ -344,6 +352,29 @@ def _cmd_excite(args) -> int:
     if emulated is not None:
         print(_hidden_line(hidden, backend, args.crank))
     return 0
+
+
+def _robot_servo(args, spec):
+    """The servo ``robot --emulate`` puts at crank ``args.crank`` of ``args.scenario`` (with
+    ``args.set``, its seed ``args.emulate``): the emulator's draw of the robot's six.
+
+    Raises:
+        InvalidConfigError: a scenario without a bus, or whose servos are not ``args.servo``.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..run.scenario_io import load_scenario
+    from ..station.bus.servos import servo_spec
+
+    scenario = load_scenario(args.scenario, [*(args.set or ()), f"emulator.seed={args.emulate}"])
+    bus = scenario.bus
+    if bus is None or bus.model != args.servo:
+        on = "no bus" if bus is None else f"{bus.model} servos"
+        raise InvalidConfigError(
+            f"--crank {args.crank}: {args.scenario} has {on}, not {args.servo}: give the robot's "
+            "own --servo, or the --scenario of a robot on them"
+        )
+    draw = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
+    return draw.one(args.crank - 1)
 
 
 def _hidden_line(hidden, backend, crank: int | None = None) -> str:
