@@ -113,7 +113,7 @@ def row(scenario_name: str, settings: list[str], args) -> dict:
 def commissioned(scenario, error: float):
     """``scenario`` with the crank servo given what each servo's commissioning identifies
     (docs/servo_bench.md): the emulator's own draw of its motor constant over the catalogue's,
-    its Coulomb friction (sliding, and half the static excess), the gears' load share; each
+    its static friction budget (sliding and the Stribeck excess), the gears' load share; each
     off by ``error`` (a share: the torque constants up and down crank to crank, the friction
     the other way, the load share up), as a bench that found them to that accuracy."""
     import dataclasses
@@ -128,7 +128,7 @@ def commissioned(scenario, error: float):
     drawn = scenario.emulator.draw(servo_spec(bus.model, torque_control=False), len(bus.ids))
     f = drawn.friction
     sign = np.array([1.0, -1.0] * 3)
-    coulomb = f[:, FRICTION["coulomb_Nm"]] + 0.5 * f[:, FRICTION["stribeck_Nm"]]
+    coulomb = f[:, FRICTION["coulomb_Nm"]] + f[:, FRICTION["stribeck_Nm"]]
     scenario.controller = dataclasses.replace(
         scenario.controller,
         torque_constant_scale=[float(v) for v in drawn.kt_scale * (1 + error * sign)],

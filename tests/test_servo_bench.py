@@ -379,8 +379,8 @@ def test_excite_as_a_user_runs_it_on_the_emulator(tmp_path, capsys):
     assert f"wrote {out}" in said and "the emulated servo (seed 2) hid: k " in said
     assert read_bench_log(out).mode == "current"
     # identified, a bus servo's model says what its crank in the crank servo takes: k (1 - K_l)
-    # over the e-Manual's stall ratio 4.1 N m / 2.3 A, the sliding friction and half the static
-    # excess, K_l, as the model file holds them
+    # over the e-Manual's stall ratio 4.1 N m / 2.3 A, the static friction budget (the sliding
+    # and the Stribeck excess), K_l, as the model file holds them
     found = tmp_path / "m5.json"
     argv = ["servo", "identify", str(out), "--servo", "XM430-W350-T", "--model-class", "m5"]
     assert cli.main([*argv, "--generations", "2", "--no-progress", "--out", str(found)]) == 0
@@ -397,7 +397,7 @@ def test_excite_as_a_user_runs_it_on_the_emulator(tmp_path, capsys):
     line = next(x for x in said.splitlines() if "for its crank in the crank servo" in x)
     assert line.endswith(
         f"torque_constant_scale {k * (1 - f['load_motor']) / (4.1 / 2.3):.4g}, friction_Nm "
-        f"{f['coulomb_Nm'] + 0.5 * f['stribeck_Nm']:.4g}, friction_load_share "
+        f"{f['coulomb_Nm'] + f['stribeck_Nm']:.4g}, friction_load_share "
         f"{f['load_motor']:.4g}"
     )
     assert cli.main(["servo", "excite", "--mass", "1", "--length", "0.1", "--out", str(out)]) == 2
@@ -494,16 +494,16 @@ def test_commissioning_over_the_bus_recovers_the_emulated_servos_hidden_figures(
 def test_what_the_crank_servo_takes_of_an_identified_servo():
     """An XM430-W350-T identified as M5 (k 2.5 N m/A at the shaft, the gears losing 0.29 of the
     motor's torque): its torque per ampere while it drives, 2.5 x 0.71 = 1.775 N m/A, over the
-    e-Manual's stall ratio 4.1 N m / 2.3 A; its Coulomb friction the sliding 0.04 and half the
-    static 0.02; its load share 0.29. An M3 model's single load share is taken the same way; a
-    servo the bus does not drive (the XL330) has none."""
+    e-Manual's stall ratio 4.1 N m / 2.3 A; its Coulomb friction the static budget, the sliding
+    0.04 and the Stribeck excess 0.02; its load share 0.29. An M3 model's single load share is
+    taken the same way; a servo the bus does not drive (the XL330) has none."""
     from stewart_drake.actuator.bench import crank_servo_settings
 
     friction = {"coulomb_Nm": 0.04, "stribeck_Nm": 0.02, "load_motor": 0.29}
     m5 = BenchModel("XM430-W350-T", "m5", 2.5, 5.2, 0.01, 0.0, friction)
     got = crank_servo_settings(m5)
     assert got["torque_constant_scale"] == pytest.approx(2.5 * 0.71 / (4.1 / 2.3), rel=1e-12)
-    assert got["friction_Nm"] == pytest.approx(0.05, rel=1e-12)
+    assert got["friction_Nm"] == pytest.approx(0.06, rel=1e-12)
     assert got["friction_load_share"] == 0.29
     m3 = BenchModel("XM430-W350-T", "m3", 2.5, 5.2, 0.01, 0.0, {"coulomb_Nm": 0.04, "load": 0.2})
     got = crank_servo_settings(m3)
