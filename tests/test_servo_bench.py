@@ -460,6 +460,9 @@ def test_excite_takes_a_crank_of_the_robots_own_draw(tmp_path, capsys):
             cli.main([*argv, "--crank", crank, "--out", str(out)])
         err = capsys.readouterr().err
         assert stopped.value.code == 2 and f"--crank: invalid choice: {crank}" in err, err
+    # a robot's setting without a robot's crank would be silently ignored: refused
+    assert cli.main([*argv, "--set", "emulator.kt_scale=1.3", "--out", str(out)]) == 2
+    assert "--set emulator.kt_scale=1.3: only with --crank" in capsys.readouterr().err
     no_emulator = ["servo", "excite", "--port", "/dev/null", "--mass", "1", "--length", "0.15"]
     assert cli.main([*no_emulator, "--crank", "2", "--out", str(out)]) == 2
     assert "only with --emulate" in capsys.readouterr().err

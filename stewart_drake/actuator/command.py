@@ -307,6 +307,10 @@ def _cmd_excite(args) -> int:
         raise InvalidConfigError(
             f"--crank {args.crank}: only with --emulate (a real servo is the one on --port)"
         )
+    if args.set and args.crank is None:
+        raise InvalidConfigError(
+            f"--set {args.set[0]}: only with --crank (it sets the robot whose servo is excited)"
+        )
     pendulum = Pendulum(args.mass, args.length, supply_V=args.supply)
     period = 0.01
     t = np.arange(0.0, args.seconds, period)

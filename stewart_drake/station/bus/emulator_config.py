@@ -365,11 +365,9 @@ class EmulatedServos:
         n = len(self.k_Nm_per_A)
         if not 0 <= i < n:
             raise InvalidConfigError(f"servo {i + 1} of a set of {n}: choose 1 to {n}")
-        each = ("kt_scale", "friction_scale", "k_Nm_per_A", "resistance_ohm", "friction")
-        return replace(
-            self,
-            **{name: getattr(self, name)[i : i + 1] for name in (*each, "inl_counts", "inl_phase")},
-        )
+        each = ("kt_scale", "friction_scale", "k_Nm_per_A", "resistance_ohm", "friction",
+                "inl_counts", "inl_phase")  # fmt: skip
+        return replace(self, **{name: getattr(self, name)[i : i + 1] for name in each})
 
     def departs(self) -> bool:
         """Whether anything here departs from the controller's model."""
