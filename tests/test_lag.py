@@ -46,8 +46,34 @@ def crlb_s(t, motion, sigma, offsets):
 def test_a_pure_delay_is_found_to_a_hundredth_of_a_sample(motion, delay_s):
     lag, rms = signal_lag(T, motion(T - delay_s), motion(T), 0.5)
     assert abs(lag - delay_s) < 0.01 * H, (lag, delay_s)
-    # What is left is the command's linear interpolation between samples, microns at most.
+    # What is left is the command's interpolation between samples, microns at most.
     assert rms < 5e-6
+
+
+def held(t, command, tau_s):
+    """A servo's reading at the times t (a period H apart, from the first) of a command held a
+    period at a time: each held value approached by a first-order lag of ``tau_s``, exactly."""
+    x, out = 0.0, np.empty(t.size)
+    decay = math.exp(-H / tau_s)
+    for k, c in enumerate(command):
+        out[k] = x
+        x = c + (x - c) * decay
+    return out
+
+
+def test_a_held_command_s_lag_does_not_move_with_where_the_samples_fall():
+    # A robot holds each command for a control period, so what its encoders read moves in steps
+    # locked to the command's sample times. Put the command's samples a fraction of a period
+    # later (their times and values both) and the lag must move by that fraction, no more:
+    # within 1 us (0.25 us measured). Against a linear interpolant of the command it moved by
+    # 5.4 us here, and by up to 0.47 ms on an emulated robot's encoder log.
+    y = held(T, breath(T), 0.015)
+    lag0, _ = signal_lag(T, y, breath(T), 0.5, offsets=True)
+    assert 0.015 < lag0 < 0.025  # about the lag's tau plus half a period held
+    for fraction in (0.13, 0.31, 0.5, 0.77):
+        shifted = T + fraction * H
+        lag, _ = signal_lag(shifted, y, breath(shifted), 0.5, offsets=True)
+        assert abs(lag - fraction * H - lag0) < 1e-6, (fraction, lag, lag0)
 
 
 @pytest.mark.parametrize("delay_s", [0.0037, -0.0213, 0.2468])

@@ -101,6 +101,19 @@ def test_the_relative_latency_is_the_delay_between_the_two_platforms(tmp_path, l
     assert pair.surrogate.fidelity["measured"] == ["X"]
 
 
+@pytest.mark.parametrize("lag_s", [0.7, -0.9])
+def test_a_relative_latency_beyond_the_pair_s_usual_search_is_found_and_fails(tmp_path, lag_s):
+    # Beyond the +-0.5 s every pair's relative latency searches first: searched again wider,
+    # found to within 5 ms, and beyond the 0.1 s bound, named so.
+    t = camera_clock()
+    internal = seen(3, TRACE, t, DELAY_S + lag_s, offset_mm=OFFSETS_MM[0], seed=1)
+    pair = judge(*pair_files(tmp_path, internal=internal))
+    assert pair.relative_latency_s == pytest.approx(lag_s, abs=0.005)
+    assert not pair.judgement.at_edge and pair.judgement.meaningful, pair.judgement.line
+    assert not pair.judgement.passed
+    assert f"beyond --max-relative-latency {seconds(MAX_RELATIVE_LATENCY_S)}" in pair.judgement.line
+
+
 def test_the_clock_offset_cancels(tmp_path):
     """Given or not, the clocks' offset leaves the relative latency alone; given, each motion's
     own latency is judged as verify judges it."""

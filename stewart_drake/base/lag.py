@@ -32,7 +32,11 @@ are kept out by the range, which the callers hold under half a period (verify: 0
 repeating reference's). The measured may be sampled unevenly (a camera's frames): only the
 coarse step puts it on the uniform grid (linearly interpolated); the refinement compares each
 sample at its own time. The reference is a function of time: a trajectory, a recorded trace, or
-a command's samples linearly interpolated (:func:`signal_lag`).
+a command's samples joined by a cubic spline (:func:`signal_lag`). Not linearly: a measured
+motion that holds its command a control period at a time (a robot's encoders) has content locked
+to the command's sample times, and against a linear interpolant its lag moved with where the
+samples fell, by up to 0.47 ms at a 10 ms period (the same log, its times shifted by a fraction
+of a period); against the cubic spline it moves by under 0.1 us.
 
 **A turned frame** (:func:`rigid_shift`): where the measured positions are in a frame turned from
 the reference's (a tracker not yet registered), the score of a shift is taken after the best
@@ -48,7 +52,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .columns import interp_columns, uniform_columns
+from .columns import uniform_columns
 from .errors import InvalidConfigError
 
 #: Most samples the fine search evaluates the reference at (evenly picked): the score's minimum
@@ -222,10 +226,10 @@ def signal_lag(
 ) -> tuple[float, float]:
     """The lag L of a measured signal behind its command sampled at the same times, s, within
     +-``max_lag_s``, and the RMS residual at it: the L minimising RMS(measured(t_k) -
-    commanded(t_k - L)) (module docstring; the command linearly interpolated between its
-    samples), by :func:`best_shift`. The samples compared are the inner ones (more than
-    ``max_lag_s`` from either end), so that every shift compares the same samples and the
-    command is never read past its span. Columns count alike.
+    commanded(t_k - L)) (module docstring; the command joined between its samples by scipy's
+    not-a-knot cubic spline), by :func:`best_shift`. The samples compared are the inner ones
+    (more than ``max_lag_s`` from either end), so that every shift compares the same samples
+    and the command is never read past its span. Columns count alike.
 
     Args:
         t: (n,) sample times, s, increasing (evenly or not). measured, commanded: (n,) or (n, k)
@@ -257,10 +261,10 @@ def signal_lag(
     if np.all(np.ptp(c[inner], axis=0) <= still_below):
         return math.nan, math.nan
     t_in, y_in = t[inner], y[inner]
-    weights = np.ones(c.shape[1])
+    from scipy.interpolate import CubicSpline
 
-    def seen(times):
-        return interp_columns(times, t, c)
+    weights = np.ones(c.shape[1])
+    seen = CubicSpline(t, c, axis=0)
 
     step = float(np.median(np.diff(t)))
     d = best_shift(t_in, y_in, weights, seen, (-max_lag_s, max_lag_s), step, offsets)

@@ -1,8 +1,9 @@
 """The figures of an internal-external pair, defined once: each signal's lag behind what it was
 asked, their relative latency, and the pair's relationship (lead, hysteresis loop, correlation,
 amplitude ratio, baseline drift). Below everything that measures a pair: the Diagram's pair
-report (:mod:`stewart_drake.organ_motion.surrogate_pair`) and the robot's session from its
-encoders (:mod:`stewart_drake.live.session_surrogate`) both take their relative latency from
+report (:mod:`stewart_drake.organ_motion.surrogate_pair`), the robot's session from its
+encoders (:mod:`stewart_drake.live.session_surrogate`) and ``verify --surrogate`` from measured
+files (:mod:`stewart_drake.verification.pair_judgement`) all take their relative latency from
 :func:`relative_latency`.
 
 Sign conventions (docs/surrogate.md, "Reading the relative latency"; the words for time offsets
@@ -32,6 +33,11 @@ from .errors import InvalidConfigError
 from .lag import inner_mask, signal_lag
 from .signals import principal_direction
 
+#: The lags a pair's relative latency searches either way, s (under half a breath, so that a
+#: breath earlier or later is never matched): the Diagram's pair report's, the robot's session's
+#: and ``verify --surrogate``'s (which widens it only for a lag found at its edge).
+LAG_SEARCH_S = 0.5
+
 
 def _uniform(t: np.ndarray) -> float:
     dt = np.diff(t)
@@ -43,16 +49,18 @@ def _uniform(t: np.ndarray) -> float:
     return h
 
 
-def _check_record(t: np.ndarray, max_s: float) -> None:
-    """Refuse samples not uniform, or fewer than 8 more than ``max_s`` from either end."""
-    h = _uniform(t)
-    k = max(int(np.ceil(max_s / h)), 1)
-    inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
-    if inner.sum() < 8:
+def _check_record(t: np.ndarray, max_s: float, uniform: bool = True) -> None:
+    """Refuse samples not increasing (or, with ``uniform``, not at a uniform step), or fewer
+    than 8 more than ``max_s`` from either end."""
+    if uniform:
+        _uniform(t)
+    elif t.ndim != 1 or len(t) < 8 or np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("a pair's figures need at least 8 samples at increasing times")
+    if np.count_nonzero(inner_mask(t, max_s)) < 8:
         raise InvalidConfigError(f"a lag of up to {max_s:g} s needs a longer record")
 
 
-def lag_s(t, commanded, measured, max_s: float = 0.5) -> float:
+def lag_s(t, commanded, measured, max_s: float = LAG_SEARCH_S) -> float:
     """How late ``measured`` is behind ``commanded``, s: the shift d in [-max_s, max_s] that
     makes measured(t) - commanded(t - d) least in RMS once their mean difference (a constant
     offset) is removed; ``commanded`` linearly interpolated; the package's one lag search
@@ -170,31 +178,33 @@ def relative_latency(
     internal_measured,
     external,
     external_measured,
-    max_s: float = 0.5,
+    max_s: float = LAG_SEARCH_S,
     *,
     still_internal: float = 0.0,
     still_external: float = 0.0,
     min_samples: int = 8,
 ) -> PairLatency:
     """The relative latency of a pair (module docstring): the internal target's lag less the
-    surrogate's, each as :func:`pair_lags` measures it, on samples at a uniform step. The one
-    definition: the Diagram's pair report and the robot's session (from its encoders) both
-    measure theirs here.
+    surrogate's, each as :func:`pair_lags` measures it, each sample at its own time (a
+    camera's uneven frames too). The one definition: the Diagram's pair report, the robot's
+    session (from its encoders) and ``verify --surrogate`` (from measured files,
+    :func:`~stewart_drake.verification.pair_judgement.pair_relative_latency`) all measure
+    theirs here.
 
     Args:
-        t: (n,) uniform s, the one clock of both.
+        t: (n,) s, increasing, the one clock of both.
         internal, internal_measured, external, external_measured: as :func:`pair_lags`'s.
         max_s: the largest lag searched, s.
         still_internal, still_external, min_samples: as :func:`pair_lags`'s.
     Returns:
         :class:`PairLatency`.
     Raises:
-        InvalidConfigError: fewer than 8 samples, not uniform, or fewer than 8 (and
+        InvalidConfigError: fewer than 8 samples, not increasing, or fewer than 8 (and
             ``min_samples``) inside the search's margins; a principal direction of non-finite
             samples.
     """
     t = np.asarray(t, float)
-    _check_record(t, max_s)
+    _check_record(t, max_s, uniform=False)
     u, (d_i, rms_i), (d_e, rms_e) = pair_lags(
         t,
         internal,

@@ -48,7 +48,7 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..base.lag import inner_mask, signal_lag
-from ..base.pair_figures import relative_latency
+from ..base.pair_figures import LAG_SEARCH_S, relative_latency
 from ..base.signals import direction_words
 from ..base.verdicts import verdict as verdict_word
 from ..base.verdicts import within
@@ -124,26 +124,33 @@ def lag_match(homed, period_s: float, t_end: float):
 
 def relative_latency_of_run(driver, homed, t, carriage):
     """The relative latency of the run's periods after the homing lead-in, from the
-    encoders, held to one control period."""
-    x_c = homed.evaluate(t)[0]
+    encoders, held to one control period; on the reference's own clock (the warped clock of
+    its start and end ramps, :meth:`~..references.homing.HomingReference.reference_time`, the
+    encoder log's ``t_path``), as ``verify --surrogate`` measures it on the log: each period at
+    the reference's time it was asked, the periods after the path ends (its time held) left
+    out."""
+    t = np.asarray(t, dtype=float)
+    tau = homed.reference_time(t)
+    after = np.flatnonzero(t >= homed.home_s)
+    after = after[np.diff(tau[after], prepend=-np.inf) > 0]  # tau never falls
+    s_m, s_c, s_ref, delays = (np.asarray(v, dtype=float)[after] for v in carriage)
     return judged_relative_latency(
-        t,
-        driver.pose_readings(),
-        x_c,
-        carriage[0],
-        carriage[1],
-        s_reference=carriage[2],
-        delays_s=carriage[3] if driver.surrogate.lag_match is not None else None,
+        tau[after],
+        np.asarray(driver.pose_readings(), dtype=float)[after],
+        homed.evaluate(t[after])[0],
+        s_m,
+        s_c,
+        s_reference=s_ref,
+        delays_s=delays if driver.surrogate.lag_match is not None else None,
         tolerance_s=driver.period_s,
-        t_from=homed.home_s,
         s_count_m=driver.surrogate.config.metres_per_count,
         # A crank's count moves the platform by about its crank's length times the count.
         x_count_m=0.01 * driver.quantum_rad,
     )
 
 
-#: The longest lag searched, s.
-MAX_LAG_S = 0.5
+#: The longest lag searched, s: the pair's (:data:`~stewart_drake.base.pair_figures.LAG_SEARCH_S`).
+MAX_LAG_S = LAG_SEARCH_S
 #: Fewest samples a window must hold.
 MIN_SAMPLES = 20
 

@@ -24,12 +24,16 @@ measured motion behind its command).
 
 **How it is found** (:func:`verify_pair`): the internal motion by
 :func:`~stewart_drake.verification.verify.verify`, as ``verify`` alone judges it (its
-frames, its clock); the surrogate's shift then searched on the internal's clock, within
-:data:`RELATIVE_SEARCH_S` (or :data:`~stewart_drake.verification.measured_span.SEARCH_FACTOR`
-times the bound, if wider; at most 0.45 of a periodic surrogate's period, so a breath earlier or
-later is never taken) of d_internal, by the same search (FFT over every shift on a grid, then to a
-fraction of a sample: :func:`relative_shift`). The surrogate's own fidelity is verify's on its
-own (its offset removed on the one axis it moves, ``frame="axes"``).
+frames, its clock d_internal); then, on the internal's clock, the pair's relative latency by
+the package's one definition (:func:`pair_relative_latency`, through
+:func:`~stewart_drake.base.pair_figures.relative_latency`, the Diagram's pair report's and the
+robot's session's): the internal's lag left along its reference's principal direction and the
+surrogate's lag, each within :data:`~stewart_drake.base.pair_figures.LAG_SEARCH_S` (or within
+:data:`RELATIVE_SEARCH_S`, or :data:`~stewart_drake.verification.measured_span.SEARCH_FACTOR`
+times the bound if wider, at most 0.45 of a periodic surrogate's period so that a breath
+earlier or later is never taken, when the surrogate's is at that edge), their difference
+tau_rel. The surrogate's own fidelity is verify's on its own (its offset removed on the one
+axis it moves, ``frame="axes"``).
 
 **What is read** (:func:`~.pair_command.cmd_verify_pair`): two files of one camera or tracker on
 its own clock, each read as ``verify`` reads a tracker's file; or the robot's encoder log for
@@ -124,7 +128,8 @@ class PairVerification:
         relative_latency_s: tau_rel = d_surrogate - d_internal, s (module docstring).
         surrogate_shift_s: d_surrogate, the surrogate's shift found on the internal's clock, s
             (the measured time + it = the surrogate reference's time). internal_shift_s:
-            d_internal, s.
+            d_internal, s: the internal's clock's shift less its lag left along its principal
+            direction (:func:`pair_relative_latency`).
         searched_s: (lo, hi) the relative latencies searched, s.
         notes: what the report adds in words (the surrogate's own shift when it departs from
             the pair's).
@@ -201,8 +206,8 @@ class PairVerification:
 DEFINITION = (
     "relative latency = the internal target's latency - the surrogate's = d_surrogate - "
     "d_internal, each d the shift that puts its measured motion on its reference's clock (the "
-    "measured time + d = the reference's); > 0: the internal target late against the surrogate; "
-    "the clocks' offset cancels"
+    "measured time + d = the reference's; the internal's along its reference's principal "
+    "direction); > 0: the internal target late against the surrogate; the clocks' offset cancels"
 )
 
 
@@ -237,35 +242,64 @@ def span_mask(reference, t_ref) -> np.ndarray:
     return use if np.count_nonzero(use) >= MIN_INSIDE else np.ones(len(t_ref), dtype=bool)
 
 
-def relative_shift(reference, measured, around_s: float, half_width_s: float) -> float:
-    """The shift d (s; the measured time + d = the reference's time) of least distance between
-    the measured axes and the reference's, each less its mean difference (``verify``'s frames
-    "axes"), within ``around_s`` +- ``half_width_s``: the package's one lag search
-    (:func:`~stewart_drake.base.lag.best_shift`, as ``verify``'s clock): coarsely over every
-    shift by FFT, then to a fraction of a sample on the samples inside the reference's span.
+def pair_relative_latency(internal, surrogate_reference, surrogate_measured, half_width_s: float):
+    """The pair's relative latency on the internal's clock, by the package's one definition
+    (:func:`~stewart_drake.base.pair_figures.relative_latency`, the Diagram's pair report's and
+    the robot's session's).
+
+    The internal: its measured poses wherever ``verify`` compared them (its start-up too), on
+    its reference's clock and in its frames, against its reference, along the principal
+    direction of the reference's measured translations (of its rotations, if it measured no
+    translation). The surrogate: its measured axes, linearly interpolated to the same times on
+    the one measured clock, against its reference. Each lag within
+    +-:data:`~stewart_drake.base.pair_figures.LAG_SEARCH_S` (the pair's usual search), or within
+    +-``half_width_s`` when the surrogate's lag is found within
+    :data:`~.measured_verdict.EDGE_S` of that edge; a constant offset removed; over the samples
+    more than the search's half-width from either end. The internal's lag is what its 6-D clock
+    search left along that direction (microseconds on a pure lag).
 
     Args:
-        reference: the surrogate's reference. measured: its
-            :class:`~stewart_drake.verification.measured_motion.MeasuredMotion`.
-        around_s, half_width_s: s.
+        internal: the internal motion's
+            :class:`~stewart_drake.verification.verify.Verification`.
+        surrogate_reference: its reference. surrogate_measured: its
+            :class:`~stewart_drake.verification.measured_motion.MeasuredMotion`, on the
+            internal measurement's clock.
+        half_width_s: the lags searched either way, s.
+    Returns:
+        :class:`~stewart_drake.base.pair_figures.PairLatency`, its lags on the internal's
+        clock (the measured time + the internal's shift).
+    Raises:
+        InvalidConfigError: fewer than 8 samples where both measurements and both references
+            overlap, more than ``half_width_s`` from the window's ends.
     """
-    from ..base.lag import best_shift
-    from .alignment import Frames, axis_weights, reference_seen
-    from .verify import COARSE_STEP_S
+    from ..base.columns import interp_columns
+    from ..base.pair_figures import LAG_SEARCH_S, relative_latency
+    from .alignment import in_span, reference_poses
 
-    t, y = measured.t, np.asarray(measured.poses, dtype=float)
-    frames = Frames("axes")
-    weights = axis_weights(measured.measured)
-    step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
-
-    def seen(times):
-        return reference_seen(frames, reference, times)
-
-    def inside(d0: float) -> np.ndarray:
-        return span_mask(reference, t + d0)
-
-    bounds = (around_s - half_width_s, around_s + half_width_s)
-    return best_shift(t, y, weights, seen, bounds, step, True, inside)
+    t, x, x_d = internal.result.t, internal.result.x, internal.result.x_d
+    d_i = internal.shift_s
+    s_t = np.asarray(surrogate_measured.t, dtype=float)
+    seen = np.asarray(internal.measured.measured, dtype=bool)
+    keep = in_span(surrogate_reference, t) & (t - d_i >= s_t[0]) & (t - d_i <= s_t[-1])
+    keep &= np.all(np.isfinite(x[:, seen]), axis=1)
+    t, x, x_d = t[keep], np.where(np.isfinite(x[keep]), x[keep], x_d[keep]), x_d[keep]
+    block = slice(3, 6) if seen[3:6].any() else slice(0, 3)
+    mask = seen[block].astype(float)  # the axes not measured take no part
+    axes = np.flatnonzero(np.asarray(surrogate_measured.measured, dtype=bool))
+    s_y = np.asarray(surrogate_measured.poses, dtype=float)[:, axes]
+    pair = partial(
+        relative_latency,
+        t,
+        x_d[:, block] * mask,
+        x[:, block] * mask,
+        reference_poses(surrogate_reference, t)[:, axes],
+        interp_columns(t - d_i, s_t, s_y),
+    )
+    narrow = min(LAG_SEARCH_S, half_width_s)
+    found = pair(narrow)
+    if narrow < half_width_s and not abs(found.external_lag_s) < narrow - EDGE_S:
+        found = pair(half_width_s)  # at the edge of the pair's usual search: look wider
+    return found
 
 
 # -- whether a motion follows its reference --------------------------------------------------------
@@ -421,8 +455,12 @@ def verify_pair(
     surrogate = alone(surrogate_reference, surrogate_measured)
     d_i = internal.shift_s
     half = search_half_width(surrogate_reference, max_relative_latency_s)
-    d_s = relative_shift(surrogate_reference, surrogate_measured, d_i, half)
-    tau = d_s - d_i
+    pair = pair_relative_latency(internal, surrogate_reference, surrogate_measured, half)
+    # On the internal's clock a lag is minus a shift; an internal whose reference does not
+    # move along the direction has no lag of its own there: its clock's shift stands.
+    d_int = d_i - (pair.internal_lag_s if math.isfinite(pair.internal_lag_s) else 0.0)
+    d_s = d_i - pair.external_lag_s
+    tau = d_s - d_int
     t, x, x_d = verification.judged_window(internal)
     why_internal = why_not_following(internal_reference, t, x, x_d, internal_measured.measured)
     # On the internal's clock, unless the internal's shift means nothing: then on its own.
@@ -445,7 +483,7 @@ def verify_pair(
             judgement = judge_relative(tau, max_relative_latency_s, half, names, why, swapped)
     notes = _own_match_notes(surrogate.shift_s - d_s, names[1], half)
     return PairVerification(
-        internal, surrogate, float(tau), float(d_s), float(d_i), (-half, half), notes, judgement
+        internal, surrogate, float(tau), float(d_s), float(d_int), (-half, half), notes, judgement
     )
 
 
@@ -473,7 +511,7 @@ __all__ = [
     "PairVerification",
     "search_half_width",
     "span_mask",
-    "relative_shift",
+    "pair_relative_latency",
     "judge_relative",
     "check_one_clock",
     "verify_pair",
