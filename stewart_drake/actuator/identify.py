@@ -129,6 +129,19 @@ def has_settled(best_mae: Sequence[float], count_rad: float = 0.0) -> bool:
     return bool(before - after <= max(SETTLED_SHARE * before, SETTLED_COUNTS * count_rad))
 
 
+def _checked(logs, servo: str, model_class: str, generations: int) -> tuple:
+    """(the servo's :class:`~.bench.BenchServo`, the generations) once :func:`identify`'s
+    arguments are checked (its Raises)."""
+    spec = bench_servo(servo)
+    if model_class not in MODEL_CLASSES:
+        raise InvalidConfigError(
+            f"--model-class {model_class!r}: choose one of {', '.join(MODEL_CLASSES)}"
+        )
+    if not logs:
+        raise InvalidConfigError("identify needs at least one bench log")
+    return spec, check_int("generations", generations, 1)
+
+
 def identify(
     logs: Sequence[BenchLog],
     servo: str,
@@ -151,14 +164,7 @@ def identify(
     """
     from scipy.optimize import differential_evolution
 
-    spec = bench_servo(servo)
-    if model_class not in MODEL_CLASSES:
-        raise InvalidConfigError(
-            f"--model-class {model_class!r}: choose one of {', '.join(MODEL_CLASSES)}"
-        )
-    if not logs:
-        raise InvalidConfigError("identify needs at least one bench log")
-    generations = check_int("generations", generations, 1)
+    spec, generations = _checked(logs, servo, model_class, generations)
     with_lag = any(log.mode == "current" for log in logs)
     n = 5 if with_lag else 4
     arrays = [log_arrays(log, spec) for log in logs]
