@@ -591,7 +591,7 @@ HOSTILE = {
     "motion frame missing": (
         _FRAMES.replace("  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n", ""),
         r"motion_frames: missing platform_marker; write motion_frames: \{tracker_base: .* as "
-        r"verify --save-registration writes it",
+        r"calibrate --register writes it",
     ),
     "motion frame without its pose": (
         _FRAMES.replace("{rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}", "{xyz_m: [0, 0, 0]}"),
@@ -686,11 +686,11 @@ def test_the_file_of_fitted_frames_reads_as_a_person_would_write_it():
     text = rf.motion_frames_yaml(X, RigidTransform(), (1e-3, 2e-4), (3e-3, 4e-4), 5e-5, "a run")
     lines = text.splitlines()
     assert lines[:3] == [
-        "# The tracker's frames fitted to a registration motion (stewart-drake verify "
-        "--save-registration):",
+        "# The tracker's frames fitted to a registration motion (stewart-drake calibrate "
+        "--register):",
         "# X_TB the base in the tracker's frame, X_PM the marker on the platform. Give this "
         "file to",
-        "# verify --registration; calibrate needs fiducials instead.",
+        "# verify --registration; calibrate's identification needs fiducials instead.",
     ]
     assert lines[3:] == [
         "motion_frames:",

@@ -45,6 +45,8 @@ def test_every_option_shows_its_default_in_help():
     for name, command, action in _options():
         if isinstance(action, argparse._StoreTrueAction):
             continue  # a flag: off unless given
+        if action.help == argparse.SUPPRESS:
+            continue  # an option that only says where it moved: no help shown
         text = command.formatter_class("x")._get_help_string(action) % {"default": action.default}
         if "default" not in text:
             missing.append(f"{name} {action.option_strings[0]}")

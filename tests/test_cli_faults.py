@@ -734,15 +734,22 @@ def _own_inputs(home: Path) -> None:
             "--learned model.npz",
         ),
         (
-            ["verify", "breathing", "--measured", "meas.csv", "--save-registration", "meas.csv"],
-            "--save-registration meas.csv",
-            "--measured meas.csv",
+            ["calibrate", "--register", "meas.csv", "--out", "meas.csv"],
+            "--out meas.csv",
+            "--register meas.csv",
         ),
         (
-            ["verify", "breathing", "--measured", "meas.csv", "--registration", "reg.yaml"]
-            + ["--save-registration", "reg.yaml"],
-            "--save-registration reg.yaml",
-            "--registration reg.yaml",
+            [
+                "calibrate",
+                "--register",
+                "meas.csv",
+                "--scenario",
+                "mine.yaml",
+                "--out",
+                "mine.yaml",
+            ],
+            "--out mine.yaml",
+            "--scenario mine.yaml",
         ),
         (
             ["robot", "trace.csv", "--out", "logs"],
@@ -780,7 +787,7 @@ def _own_inputs(home: Path) -> None:
         "learned-onto-trace",
         "learned-onto-learned",
         "registration-onto-measured",
-        "registration-onto-registration",
+        "registration-onto-scenario",
         "robot-log-link",
         "robot-npz-hard-link",
         "design-scenario",

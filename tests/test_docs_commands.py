@@ -53,7 +53,6 @@ REPOSITORY_FOLDERS = ("scenarios", "stewart_drake")
 OUTPUTS = {
     "out",
     "out_files",
-    "save_registration",
     "save_learned",
     "html",
     "docs",

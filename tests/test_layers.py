@@ -3,8 +3,9 @@ command. Core: base (errors, checks, the checked reader; the generated LCM types
 (geometry, kinematics, statics, limits) -> plant (the MultibodyPlant, clearance, MuJoCo) ->
 control -> references -> station -> run -> execution. Features above it: viz (replays and
 pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design,
-live (the robot live) and verification (verify, alone or with its surrogate's pair, and its
-record); cli on top. The command's
+verification (verify, alone or with its surrogate's pair, and its record) and studies; live
+(the robot live, and calibrate, which registers a tracker by verification's fit) above them;
+cli on top. The command's
 shared options (execution.options: argument types, output checks, the scenario, trace and
 runner options), which every feature's command module imports, sit in execution, below the
 features. A package imports its own package or a lower rank, never
@@ -37,10 +38,10 @@ LAYERS = {
     "actuator": 9,
     "evaluation": 10,
     "design": 10,
-    "live": 10,
     "verification": 10,
     "studies": 10,
-    "cli": 11,
+    "live": 11,
+    "cli": 12,
 }
 #: Modules ranked apart from their package (a key of LAYERS): ``python -m stewart_drake`` is the
 #: command, beside cli; a module imported from below its package's rank moves down to a package

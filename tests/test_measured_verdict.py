@@ -556,7 +556,7 @@ def test_a_turned_motion_is_named_with_its_turn():
         r"the measured motion is turned (\S+) deg from the reference's \(turned back, it comes "
         r"within (\S+ \S+) RMS of it, against (\S+ mm)\): the tracker's axes are not the base "
         r"frame's, or the whole phantom is set down tilted; register the tracker "
-        r"\(--registration REG.yaml, from fiducials or --save-registration\) to tell them apart",
+        r"\(--registration REG.yaml, from fiducials or calibrate --register\) to tell them apart",
         cause,
     )
     assert m and float(m.group(1)) == pytest.approx(12.3, abs=0.05)

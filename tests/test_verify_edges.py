@@ -5,7 +5,7 @@ rest FAILs); a pair whose motions are smaller than the tolerance (the right one 
 not move" only of one that did not); a swapped pair at a bound wide enough to hold it; times
 since 1970 keeping the latency's digits; a phantom 41 mm off its place under a registration
 (the clock not pulled, the offset named); a tracker turned 10, 45, 90 and 180 deg named at
-each angle; a mirrored tracker or reversed rotations refused by --save-registration; a clock
+each angle; a mirrored tracker or reversed rotations refused by calibrate --register; a clock
 offset of 1e10 s refused in bounded memory; and what a newcomer reads (the option a refusal
 names, figures per axis in mm, an earlier report or registration never replaced silently)."""
 
@@ -280,8 +280,8 @@ def test_save_registration_never_replaces_a_file(tmp_path, capsys):
     reg = tmp_path / "REG.yaml"
     reg.write_text("kept\n")
     code = main(
-        ["verify", "registration", "--measured", str(reg_csv), "--measured-columns"]
-        + [MARKER_COLUMNS, "--save-registration", str(reg)]
+        ["calibrate", "--register", str(reg_csv), "--measured-columns", MARKER_COLUMNS]
+        + ["--out", str(reg)]
     )
     err = capsys.readouterr().err
     assert code == 2 and reg.read_text() == "kept\n"

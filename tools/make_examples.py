@@ -252,8 +252,8 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   of 5 um and 20 urad (`fiducials(MeasurementNoise(5e-6, 20e-6), seed=1)`). With them `verify`
   PASSes `markers.csv` (a latency of 59.98 ms, the noise as the error), FAILs
   `markers_turned.csv` without a registration ("the measured motion is turned 26.9 deg from the
-  reference's") and PASSes it through `REG.yaml` or through the registration that `verify
-  registration --measured reg_markers.csv --save-registration` fits.
+  reference's") and PASSes it through `REG.yaml` or through the registration that `calibrate
+  --register reg_markers.csv` fits.
 - **The encoder log** (`run_encoders.csv`): 12 s of the breathing 15 ms late after 0.5 s of
   lead-in, the readings the inverse kinematics of `phantom_hardware`'s robot plus its encoders'
   zero errors, quantized to 2^17 counts a turn; a surrogate's servo on the bus, its carriage

@@ -13,8 +13,8 @@ from ..execution.options import int_at_least, positive_float
 
 
 def add_mode_arguments(cal, robot_scenario: str) -> None:
-    """The modes (identify by default; ``--plan``, ``--rehearse``, ``--join``) and the files
-    ``--join`` and ``--rehearse --bus`` take."""
+    """The modes (identify by default; ``--plan``, ``--rehearse``, ``--join``, ``--register``)
+    and the files ``--join`` and ``--rehearse --bus`` take."""
     mode = cal.add_mutually_exclusive_group()
     mode.add_argument(
         "--plan",
@@ -39,6 +39,15 @@ def add_mode_arguments(cal, robot_scenario: str) -> None:
         ".csv) and the tracker's file (time [s] on the robot computer's clock, phi [rad] .. "
         "Z [m]) over the windows of --plan-file into the measurements file --out (default: "
         "none: identify)",
+    )
+    mode.add_argument(
+        "--register",
+        default=None,
+        metavar="MEASURED.csv",
+        help="register a tracker: fit its frame and the marker's offset on the platform to its "
+        "measurement of the registration motion (`stewart-drake robot registration`; its "
+        "--param as the robot ran it) and write them to --out (REG.yaml), for verify's "
+        "--registration; that run is not judged (default: identify)",
     )
     cal.add_argument(
         "--plan-file",

@@ -15,7 +15,7 @@ how they are fitted: :mod:`~.registration`.
         - {platform_m: [x, y, z], tracker_m: [x, y, z]}
 
 A REG.yaml may instead hold the frames fitted once to a registration motion (``stewart-drake
-verify --save-registration``, :mod:`~stewart_drake.verification.registration_motion`), which
+calibrate --register``, :mod:`~stewart_drake.verification.registration_motion`), which
 :func:`motion_frames_yaml` writes and :func:`read_registration` reads::
 
     motion_frames:
@@ -75,7 +75,7 @@ REGISTRATION_REMEDY = (
 #: What to write when a field of the frames fitted to a registration motion is missing.
 MOTION_FRAMES_REMEDY = (
     "write motion_frames: {tracker_base: {rpy_rad: [...], xyz_m: [...]}, platform_marker: "
-    "{rpy_rad: [...], xyz_m: [...]}, rms_m: ...} as verify --save-registration writes it "
+    "{rpy_rad: [...], xyz_m: [...]}, rms_m: ...} as calibrate --register writes it "
     "(docs/calibration.md, Registration)"
 )
 
@@ -361,9 +361,9 @@ def motion_frames_yaml(X_TB, X_PM, sigma_B, sigma_M, rms_m: float, source: str) 
         }
     }
     head = (
-        "# The tracker's frames fitted to a registration motion (stewart-drake verify "
-        "--save-registration):\n# X_TB the base in the tracker's frame, X_PM the marker on "
-        "the platform. Give this file to\n# verify --registration; calibrate needs fiducials "
-        "instead.\n"
+        "# The tracker's frames fitted to a registration motion (stewart-drake calibrate "
+        "--register):\n# X_TB the base in the tracker's frame, X_PM the marker on "
+        "the platform. Give this file to\n# verify --registration; calibrate's identification "
+        "needs fiducials instead.\n"
     )
     return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=100)

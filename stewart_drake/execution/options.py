@@ -130,6 +130,7 @@ INPUT_OPTIONS = {
     "surrogate": "--surrogate",
     "measured_surrogate": "--measured-surrogate",
     "registration": "--registration",
+    "register": "--register",
     "measurements": "the measurements",
     "join": "--join",
     "plan_file": "--plan-file",
@@ -140,7 +141,6 @@ INPUT_OPTIONS = {
 OUTPUT_FILE_OPTIONS = {
     "html": "--html",
     "save_learned": "--save-learned",
-    "save_registration": "--save-registration",
     "save_measurements": "--save-measurements",
     "plot": "--plot",
 }

@@ -22,6 +22,7 @@ from ..calibration.calibrate_options import (
     add_rehearsal_arguments,
 )
 from ..execution.options import add_scenario_arguments
+from ..verification.command import add_measured_file_arguments
 
 
 def register(sub) -> None:
@@ -67,6 +68,14 @@ def register(sub) -> None:
     add_scenario_arguments(cal, "the nominal robot and its encoders")
     add_identification_arguments(cal)
     add_rehearsal_arguments(cal)
+    add_measured_file_arguments(cal)
+    cal.add_argument(
+        "--param",
+        action="append",
+        metavar="KEY=VALUE",
+        help="with --register: a parameter of the registration motion with its unit "
+        "(repeatable), as the robot ran it (default: the motion's own)",
+    )
     cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     # --scenario given or not: without it, the bus rehearsal takes the robot's bus scenario.
     cal.set_defaults(
@@ -88,6 +97,11 @@ def _cmd_calibrate(args) -> int:
     """``stewart-drake calibrate``: one of its three modes, each checked before any work."""
     from ..base.errors import InvalidConfigError
 
+    if args.register is not None:
+        return _register(args)
+    for dest in ("param", "measured_columns", "measured_map", "clock_offset"):
+        if getattr(args, dest) is not None:
+            raise InvalidConfigError(f"--{dest.replace('_', '-')} is for --register")
     given = args.measurements is not None
     other = "--plan" if args.plan is not None else "--rehearse" if args.rehearse else "--join"
     if args.plan is not None or args.rehearse or args.join is not None:
@@ -155,6 +169,77 @@ def _cmd_calibrate(args) -> int:
     if args.rehearse:
         return _rehearse(args, context, registration)
     return _identify(args, context, registration)
+
+
+#: The options ``calibrate --register`` does not take (identification's, --join's and
+#: --rehearse's), each named when given.
+NOT_FOR_REGISTER = (
+    ("measurements", "a measurements file"),
+    ("registration", "--registration (it fits the frames itself)"),
+    ("plan_file", "--plan-file"),
+    ("tracker_clock_offset", "--tracker-clock-offset (its clock is --clock-offset)"),
+    ("bus", "--bus"),
+    ("save_measurements", "--save-measurements"),
+)
+
+
+def _register(args) -> int:
+    """``calibrate --register MEASURED.csv --out REG.yaml``: the tracker's frames fitted to its
+    run of the registration motion and written
+    (:func:`~stewart_drake.verification.registration_motion.save_registration`), 0; the run
+    is not judged. The motion is the library's ``registration`` with ``--param``, on
+    ``--scenario``'s robot (default: ``reproduce``'s and ``verify``'s scenario).
+
+    Raises:
+        InvalidConfigError: an option of another mode; no --out, or one that exists (a
+            registration is never replaced: the runs judged with it name it); what the reader
+            and the fit refuse.
+    """
+    from dataclasses import replace
+
+    from ..base.errors import InvalidConfigError
+    from ..base.fileio import check_replaceable
+    from ..execution.trace_options import key_values
+    from ..organ_motion import SCENARIO
+    from ..references.organ.library import OrganMotionReference
+    from ..run.plan import robot_geometry
+    from ..run.scenario_io import load_scenario
+    from ..verification.command import measured_file
+    from ..verification.registration_motion import save_registration
+
+    for dest, what in NOT_FOR_REGISTER:
+        if getattr(args, dest) is not None:
+            raise InvalidConfigError(f"--register takes no {what}")
+    if args.out is None:
+        raise InvalidConfigError("--register needs --out REG.yaml: the registration to write")
+    out = Path(args.out)
+    check_replaceable(out, f"--out {out}")
+    if out.exists():
+        raise InvalidConfigError(
+            f"--out {out} exists: a registration is never replaced (the runs judged with it "
+            "name it); give a new name, or move the old one away first"
+        )
+    params = key_values(args.param, "--param")
+    scenario = load_scenario(args.scenario or SCENARIO, args.set or ())
+    motion = OrganMotionReference("registration", params)
+    scenario = replace(scenario, reference=motion).validate()
+    reference = scenario.reference.make(robot_geometry(scenario), scenario.duration_s, None)
+    axis_map = key_values(args.measured_map, "--measured-map")
+    print(f"calibrate: reading {args.register}", file=sys.stderr, flush=True)
+    measured = measured_file(args.register, args, scenario, axis_map)
+    print("calibrate: fitting the tracker's frames to the registration motion", file=sys.stderr)
+    print(
+        save_registration(
+            reference,
+            measured,
+            out,
+            args.clock_offset,
+            args.max_latency,
+            args.measured_max_gap,
+        )
+    )
+    print(f"wrote {out}")
+    return 0
 
 
 def _registration(args):

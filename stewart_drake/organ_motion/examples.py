@@ -34,7 +34,7 @@ EXAMPLES = {
     "REG.yaml": "the fiducials that register markers_turned.csv's tracker to the robot "
     "(verify --registration, calibrate --registration)",
     "reg_markers.csv": "the library's registration motion seen by that tracker, 40 s at "
-    "100 Hz: verify registration --save-registration registers it from the motion",
+    "100 Hz: calibrate --register registers the tracker from it",
     "run_encoders.csv": "the robot's encoder log of the same breathing, 15 ms late, 17-bit "
     "encoders, as stewart-drake robot writes it, with a surrogate's carriage (s, s_cmd) "
     "following it through a correlation model: verify judges it beside the tracker's export, "

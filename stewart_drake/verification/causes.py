@@ -185,7 +185,7 @@ def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[s
         f"{format_length(before)}): the tracker's axes are not the base frame's"
         + (" (a quarter or half turn is also an axis swapped or reversed)" if large else "")
         + ", or the whole phantom is set down tilted; register the tracker (--registration "
-        "REG.yaml, from fiducials or --save-registration) to tell them apart",
+        "REG.yaml, from fiducials or calibrate --register) to tell them apart",
         angle,
     )
 

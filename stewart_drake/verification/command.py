@@ -10,6 +10,7 @@ registration of :mod:`~stewart_drake.calibration.registration`).
 
 from __future__ import annotations
 
+import argparse
 import math
 from pathlib import Path
 
@@ -20,6 +21,12 @@ from ..execution.trace_options import add_trace_arguments
 #: The end of an encoder log's name (``<stem>_encoders.csv``, as ``robot`` writes it): such a
 #: measured file is read as the robot's encoder log.
 ENCODER_LOG_SUFFIX = "_encoders.csv"
+#: What ``verify --save-registration`` says: a tracker is registered by ``calibrate``.
+SAVE_REGISTRATION_MOVED = (
+    "--save-registration moved to calibrate, beside the tracker's other registration: "
+    "stewart-drake calibrate --register MEASURED.csv --out REG.yaml (with its "
+    "--measured-columns, --measured-map, --clock-offset and the registration motion's --param)"
+)
 
 
 def add_verify_command(sub):
@@ -62,46 +69,7 @@ def _add_measured_arguments(vp) -> None:
         f"run's encoder log (a name ending in {ENCODER_LOG_SUFFIX}), turned into poses by "
         "forward kinematics of --scenario's robot (required: no default)",
     )
-    vp.add_argument(
-        "--measured-columns",
-        default=None,
-        metavar="'-,t [ms],X [mm],...'",
-        help="the measured file's columns and units when it has no header line (or to replace "
-        "it); a column named - is not read (a frame counter) (default: its header)",
-    )
-    vp.add_argument(
-        "--measured-map",
-        action="append",
-        metavar="COLUMN=AXIS",
-        help="put a measured column on an axis, with a sign (repeatable) (default: by name)",
-    )
-    vp.add_argument(
-        "--clock-offset",
-        type=float,
-        default=None,
-        metavar="S",
-        help="the measured file's time + S is the reference's (a tracker that started the "
-        "motion at its time 12.5 s: -12.5): separates the phantom's latency from the clocks' "
-        "offset (default: not known: the whole shift found is reported as the latency, with "
-        "clock offset 0; the encoder log is on the reference's clock)",
-    )
-    vp.add_argument(
-        "--max-latency",
-        type=positive_float,
-        default=0.5,
-        metavar="S",
-        help="the largest latency that passes with --clock-offset, s (latencies up to three "
-        "times it are searched, so that one beyond it is found and fails)",
-    )
-    vp.add_argument(
-        "--measured-max-gap",
-        type=positive_float,
-        default=0.5,
-        metavar="S",
-        help="the longest step between two measured samples judged across, s: the samples are "
-        "judged at their own times, nothing interpolated; a longer gap (the tracker lost the "
-        "marker) is refused where it is, unless --measured-pauses",
-    )
+    add_measured_file_arguments(vp)
     vp.add_argument(
         "--exclude-outliers",
         action="store_true",
@@ -118,6 +86,52 @@ def _add_measured_arguments(vp) -> None:
     )
 
 
+def add_measured_file_arguments(parser) -> None:
+    """The options of how a tracker's measured file is read and put on its reference's clock
+    (its columns and axes, the clocks' offset, the latency searched, the longest gap):
+    ``verify``'s, and ``calibrate --register``'s for the registration motion's file."""
+    parser.add_argument(
+        "--measured-columns",
+        default=None,
+        metavar="'-,t [ms],X [mm],...'",
+        help="the measured file's columns and units when it has no header line (or to replace "
+        "it); a column named - is not read (a frame counter) (default: its header)",
+    )
+    parser.add_argument(
+        "--measured-map",
+        action="append",
+        metavar="COLUMN=AXIS",
+        help="put a measured column on an axis, with a sign (repeatable) (default: by name)",
+    )
+    parser.add_argument(
+        "--clock-offset",
+        type=float,
+        default=None,
+        metavar="S",
+        help="the measured file's time + S is the reference's (a tracker that started the "
+        "motion at its time 12.5 s: -12.5): separates the phantom's latency from the clocks' "
+        "offset (default: not known: the whole shift found is reported as the latency, with "
+        "clock offset 0; the encoder log is on the reference's clock)",
+    )
+    parser.add_argument(
+        "--max-latency",
+        type=positive_float,
+        default=0.5,
+        metavar="S",
+        help="the largest latency that passes with --clock-offset, s (latencies up to three "
+        "times it are searched, so that one beyond it is found and fails)",
+    )
+    parser.add_argument(
+        "--measured-max-gap",
+        type=positive_float,
+        default=0.5,
+        metavar="S",
+        help="the longest step between two measured samples judged across, s: the samples are "
+        "judged at their own times, nothing interpolated; a longer gap (the tracker lost the "
+        "marker) is refused where it is, unless --measured-pauses",
+    )
+
+
 def _add_frame_arguments(vp) -> None:
     """``verify``'s options of the frame the measured poses are judged in, and the tolerance."""
     vp.add_argument(
@@ -125,7 +139,7 @@ def _add_frame_arguments(vp) -> None:
         default=None,
         metavar="REG.yaml",
         help="the tracker registered to the robot: fiducials (as calibrate takes them) or the "
-        "frames --save-registration wrote; the measured poses are judged in the base frame, "
+        "frames calibrate --register wrote; the measured poses are judged in the base frame, "
         "nothing fitted and no offset removed (default: none, see --frame)",
     )
     vp.add_argument(
@@ -136,14 +150,8 @@ def _add_frame_arguments(vp) -> None:
         "column names and remove its constant offset, nothing else (axes), or take the measured "
         "poses as the platform's in the base frame, nothing removed (base)",
     )
-    vp.add_argument(
-        "--save-registration",
-        default=None,
-        metavar="REG.yaml",
-        help="register the tracker instead of judging: fit its frame and the marker's offset to "
-        "this measured run of a known motion (the library's registration), write them as "
-        "REG.yaml for later runs' --registration, and give no verdict (default: judge)",
-    )
+    # Moved to ``calibrate --register``: kept only to say so in one line.
+    vp.add_argument("--save-registration", default=None, help=argparse.SUPPRESS)
     vp.add_argument(
         "--tolerance",
         default="0.1mm,0.1deg",
@@ -186,7 +194,7 @@ def _check_frame(text: str) -> None:
     if text == "fit":
         raise InvalidConfigError(
             "--frame fit is gone: a frame fitted to the motion judged absorbs the errors it "
-            "should find; register the tracker once (--save-registration on the registration "
+            "should find; register the tracker once (calibrate --register on the registration "
             "motion, or fiducials) and give --registration REG.yaml, or use --frame axes"
         )
     if text not in ("axes", "base"):
@@ -198,8 +206,7 @@ def cmd_verify(args) -> int:
     its report and print its verdict and figures (a table side by side for several); 0 when
     every verdict passes, 2 when any FAILs, else 3 when any cannot judge, else 4 when any is
     ACTION (:func:`exit_status`).
-    With ``--save-registration``: fit the tracker's frames to
-    the one measured run of a known motion and write them, 0, no verdict.
+    ``--save-registration`` is refused naming ``calibrate --register``, where it moved.
 
     Raises:
         InvalidConfigError, MissingFileError, CorruptFileError: a bad option or file (one line:
@@ -216,41 +223,19 @@ def cmd_verify(args) -> int:
     from .report import write_verification
     from .verify import verify
 
+    if args.save_registration:
+        raise InvalidConfigError(SAVE_REGISTRATION_MOVED)
     tolerance = parse_tolerance(args.tolerance)
     action_level = _action_level(args, tolerance)
     context = _record_context(args, tolerance)
     _check_frame(args.frame)
     if args.registration and args.frame != "axes":
         raise InvalidConfigError("--registration gives the frames: leave --frame out")
-    if args.save_registration and (args.registration or args.frame != "axes"):
-        raise InvalidConfigError(
-            "--save-registration fits the frames itself: leave --registration and --frame out"
-        )
-    if args.save_registration and args.measured_pauses:
-        raise InvalidConfigError(
-            "--save-registration fits the frames to one unbroken motion: leave --measured-pauses "
-            "out and cut the file to a stretch without a pause"
-        )
-    if args.save_registration and len(args.measured) != 1:
-        raise InvalidConfigError("--save-registration fits one measured run: give one --measured")
     scenario, name = motion_scenario(args)
     reference = scenario.reference.make(robot_geometry(scenario), scenario.duration_s, None)
     registration = _registration(args.registration)
     axis_map = key_values(args.measured_map, "--measured-map")
     out = Path(args.out)
-    if args.save_registration:
-        check_replaceable(
-            Path(args.save_registration), f"--save-registration {args.save_registration}"
-        )
-        if Path(args.save_registration).exists():
-            raise InvalidConfigError(
-                f"--save-registration {args.save_registration} exists: a registration is never "
-                "replaced (the runs judged with it name it); give a new name, or move the old "
-                "one away first"
-            )
-        path = args.measured[0]
-        print(f"verify: reading {path}", file=sys.stderr, flush=True)
-        return _save_registration(reference, _measured(path, args, scenario, axis_map), args)
     stems = [f"verify_{name}_{Path(m).stem}" for m in args.measured]
     if len(set(stems)) != len(stems):
         raise InvalidConfigError("--measured names two files of one name: give each once")
@@ -261,7 +246,7 @@ def cmd_verify(args) -> int:
     measured = []
     for path in args.measured:
         print(f"verify: reading {path}", file=sys.stderr, flush=True)
-        measured.append(_measured(path, args, scenario, axis_map))
+        measured.append(measured_file(path, args, scenario, axis_map))
         if measured[-1].repaired:
             print(
                 f"verify: {path}: {len(measured[-1].repaired)} times repaired from its frame "
@@ -346,19 +331,13 @@ def _action_level(args, tolerance):
     """``--action-level`` as (m, rad), checked within the tolerance before any work, or None.
 
     Raises:
-        InvalidConfigError: not LENGTH,ANGLE; beyond the tolerance or not above 0; given with
-            ``--save-registration`` (no verdict).
+        InvalidConfigError: not LENGTH,ANGLE; beyond the tolerance or not above 0.
     """
-    from ..base.errors import InvalidConfigError
     from ..organ_motion.fidelity import parse_tolerance
     from .verdict_levels import check_action_level
 
     if args.action_level is None:
         return None
-    if args.save_registration:
-        raise InvalidConfigError(
-            "--save-registration gives no verdict to grade: leave --action-level out"
-        )
     action = parse_tolerance(args.action_level, "--action-level")
     check_action_level(action, tolerance)
     return action
@@ -382,10 +361,6 @@ def _record_context(args, tolerance):
         if given:  # --record itself is not among them
             raise InvalidConfigError(f"{given[0]} is for the QA record: add --record")
         return None
-    if args.save_registration:
-        raise InvalidConfigError(
-            "--save-registration gives no verdict to record: leave --record out"
-        )
     from ..execution.options import check_writable
 
     check_writable(Path(args.out) / "records", "--out")  # where the record goes, before any work
@@ -438,53 +413,6 @@ def _earlier_verdict(path) -> str:
     return f"an earlier report of this name, its verdict {verdict}"
 
 
-def _save_registration(reference, measured, args) -> int:
-    """Fit the tracker's frames to ``measured``, a run of the known ``reference``
-    (:func:`~stewart_drake.verification.registration_motion.fit_registration`), and write them
-    to ``--save-registration``
-    (:func:`~stewart_drake.calibration.registration_file.motion_frames_yaml`); 0.
-
-    Raises:
-        InvalidConfigError: what the fit refuses; frames too uncertain to be written.
-    """
-    import sys
-
-    import numpy as np
-    from pydrake.math import RigidTransform, RotationMatrix
-
-    from ..base.errors import InvalidConfigError
-    from ..base.fileio import atomic_write
-    from ..calibration.registration_file import MAX_MARKER_SIGMA, motion_frames_yaml
-    from .registration_motion import fit_registration
-
-    print("verify: fitting the tracker's frames to the registration motion", file=sys.stderr)
-    fit = fit_registration(
-        reference, measured, args.clock_offset, args.max_latency, args.measured_max_gap
-    )
-    for what, sigma in (("the tracker's frame", fit.sigma_B), ("the marker's", fit.sigma_M)):
-        if sigma[0] > MAX_MARKER_SIGMA[0] or sigma[1] > MAX_MARKER_SIGMA[1]:
-            raise InvalidConfigError(
-                f"{measured.path}: {what} is known to +- {sigma[0] * 1e3:.3g} mrad, "
-                f"{sigma[1] * 1e3:.3g} mm only: measure a longer run of the registration motion"
-            )
-    X_BT = RigidTransform(RotationMatrix(fit.R_BT), fit.p_BT)
-    X_PM = RigidTransform(RotationMatrix(fit.R_PM), fit.p_PM)
-    text = motion_frames_yaml(
-        X_BT.inverse(), X_PM, fit.sigma_B, fit.sigma_M, fit.rms_m, fit.words()
-    )
-    path = Path(args.save_registration)
-    atomic_write(path, lambda f: f.write(text.encode()))
-    print(
-        f"registered the tracker: {fit.words()}; the tracker's frame known to +- "
-        f"{fit.sigma_B[0] * 1e6:.3g} urad, {fit.sigma_B[1] * 1e6:.3g} um, the marker "
-        f"{np.linalg.norm(fit.p_PM) * 1e3:.4g} mm from the platform's origin (+- "
-        f"{fit.sigma_M[1] * 1e6:.3g} um). This run is not judged: a frame fitted to a motion "
-        f"absorbs its errors. Judge later runs with --registration {path}"
-    )
-    print(f"wrote {path}")
-    return 0
-
-
 def _registration(path):
     """The registration REG.yaml gives
     (:func:`~stewart_drake.calibration.registration_file.read_registration`), or None."""
@@ -495,7 +423,7 @@ def _registration(path):
     return read_registration(path)
 
 
-def _measured(path: str, args, scenario, axis_map: dict):
+def measured_file(path: str, args, scenario, axis_map: dict):
     """The :class:`~stewart_drake.verification.measured_motion.MeasuredMotion` of a measured file:
     an encoder log (its name ends in :data:`ENCODER_LOG_SUFFIX`; read by the join's reader and
     turned into poses by forward kinematics of the scenario's robot) or a tracker's file (the

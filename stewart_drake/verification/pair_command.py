@@ -9,7 +9,7 @@ from pathlib import Path
 
 from ..base.errors import InvalidConfigError
 from ..organ_motion.fidelity import AXES
-from .command import ENCODER_LOG_SUFFIX, exit_status, record_options
+from .command import ENCODER_LOG_SUFFIX, SAVE_REGISTRATION_MOVED, exit_status, record_options
 from .measured_verdict import (
     seconds,
 )
@@ -204,7 +204,7 @@ def _check_pair_options(args) -> None:
             "with --surrogate, give one --measured (the internal motion's measurement)"
         )
     if args.save_registration:
-        raise InvalidConfigError("--save-registration registers a tracker: leave --surrogate out")
+        raise InvalidConfigError(SAVE_REGISTRATION_MOVED)
     if args.exclude_outliers:
         raise InvalidConfigError(
             "--exclude-outliers judges one motion without some of its frames: leave --surrogate "

@@ -1,6 +1,6 @@
 """A known motion for registering a tracker to the robot (:class:`RegistrationMotion`): measured
 once, the tracker's frame and its marker's offset on the platform are fitted to it and kept,
-and every later measured motion is judged in them (``stewart-drake verify --save-registration``).
+and every later measured motion is judged in them (``stewart-drake calibrate --register``).
 
 The way hexapod makers register an external tracker: a motion that moves along and turns about
 every axis, so that no part of the frames is left undetermined. Ours: a cosine on each of the
