@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..execution.options import (
+    add_param_argument,
     add_runner_arguments,
     add_scenario_arguments,
     check_output,
@@ -197,11 +198,9 @@ def _add_analyze_command(sub) -> None:
         "backlash, model; about 6 simulations; default breathing; the only figures of a "
         "controller other than the LQI)",
     )
-    an.add_argument(
-        "--param",
-        action="append",
-        metavar="KEY=VALUE",
-        help="a parameter of the budget's motion with its unit (repeatable), as reproduce "
+    add_param_argument(
+        an,
+        "a parameter of the budget's motion with its unit (repeatable), as reproduce "
         "takes them (default: the motion's own)",
     )
     an.add_argument("--out", default="results/analyze", help="output folder")

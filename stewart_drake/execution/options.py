@@ -505,6 +505,12 @@ LIBRARY_MOTIONS = (
 )
 
 
+def add_param_argument(parser, help: str) -> None:
+    """``--param KEY=VALUE`` (repeatable): a library motion's parameters with their units, as
+    :func:`~stewart_drake.execution.trace_options.key_values` reads them; ``help`` says whose."""
+    parser.add_argument("--param", action="append", metavar="KEY=VALUE", help=help)
+
+
 def add_motion_arguments(parser, named: str | None = None) -> None:
     """The motion a command drives or judges, one definition for ``reproduce``, ``verify`` and
     ``robot``: the positional ``motion`` (a motion of the organ-motion library or a trace file),
@@ -528,11 +534,9 @@ def add_motion_arguments(parser, named: str | None = None) -> None:
             default=None,
             help=f"{named}; a library motion: {motion} (default: the scenario's reference)",
         )
-    parser.add_argument(
-        "--param",
-        action="append",
-        metavar="KEY=VALUE",
-        help="a library motion's parameter with its unit (repeatable): "
+    add_param_argument(
+        parser,
+        "a library motion's parameter with its unit (repeatable): "
         "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
         "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
         "motion's own); a key goes to the motion (or --add layer) that has it, "

@@ -21,7 +21,7 @@ from ..calibration.calibrate_options import (
     add_mode_arguments,
     add_rehearsal_arguments,
 )
-from ..execution.options import add_scenario_arguments
+from ..execution.options import add_param_argument, add_scenario_arguments
 from ..verification.command import add_measured_file_arguments
 
 
@@ -69,11 +69,9 @@ def register(sub) -> None:
     add_identification_arguments(cal)
     add_rehearsal_arguments(cal)
     add_measured_file_arguments(cal)
-    cal.add_argument(
-        "--param",
-        action="append",
-        metavar="KEY=VALUE",
-        help="with --register: a parameter of the registration motion with its unit "
+    add_param_argument(
+        cal,
+        "with --register: a parameter of the registration motion with its unit "
         "(repeatable), as the robot ran it (default: the motion's own)",
     )
     cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")

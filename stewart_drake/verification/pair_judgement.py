@@ -461,16 +461,8 @@ def verify_pair(
     d_int = d_i - (pair.internal_lag_s if math.isfinite(pair.internal_lag_s) else 0.0)
     d_s = d_i - pair.external_lag_s
     tau = d_s - d_int
-    t, x, x_d = verification.judged_window(internal)
-    why_internal = why_not_following(internal_reference, t, x, x_d, internal_measured.measured)
-    # On the internal's clock, unless the internal's shift means nothing: then on its own.
-    if why_internal:
-        t, x, x_d = verification.judged_window(surrogate)
-    else:
-        t, x, x_d = _at_shift(surrogate_reference, surrogate_measured, d_s)
-    why_surrogate = why_not_following(surrogate_reference, t, x, x_d, surrogate_measured.measured)
+    why = _not_following(internal, surrogate, d_s)
     names = (Path(internal_measured.path).name, Path(surrogate_measured.path).name)
-    why = (why_internal, why_surrogate)
     judgement = judge_relative(tau, max_relative_latency_s, half, names, why, None)
     if internal.frame.how != "registration":  # a registered tracker's axes are not B's
         swapped = swapped_words(
@@ -485,6 +477,23 @@ def verify_pair(
     return PairVerification(
         internal, surrogate, float(tau), float(d_s), float(d_int), (-half, half), notes, judgement
     )
+
+
+def _not_following(internal, surrogate, d_s: float) -> tuple:
+    """(why the internal does not follow its reference, why the surrogate does not), each
+    None when it does (:func:`~.pair_causes.why_not_following`): the internal over the window
+    ``verify`` judged; the surrogate on the internal's clock at its shift ``d_s`` (s), unless
+    the internal's shift means nothing: then over its own judged window."""
+    from .verify import judged_window
+
+    why_internal = why_not_following(
+        internal.reference, *judged_window(internal), internal.measured.measured
+    )
+    if why_internal:
+        seen = judged_window(surrogate)
+    else:
+        seen = _at_shift(surrogate.reference, surrogate.measured, d_s)
+    return why_internal, why_not_following(surrogate.reference, *seen, surrogate.measured.measured)
 
 
 def _own_match_notes(apart: float, name: str, half: float) -> list[str]:
