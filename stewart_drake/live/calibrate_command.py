@@ -184,7 +184,7 @@ NOT_FOR_REGISTER = (
 def _register(args) -> int:
     """``calibrate --register MEASURED.csv --out REG.yaml``: the tracker's frames fitted to its
     run of the registration motion and written
-    (:func:`~stewart_drake.verification.registration_motion.save_registration`), 0; the run
+    (:func:`~stewart_drake.verification.registration_command.save_registration`), 0; the run
     is not judged. The motion is the library's ``registration`` with ``--param``, on
     ``--scenario``'s robot (default: ``reproduce``'s and ``verify``'s scenario).
 
@@ -203,7 +203,7 @@ def _register(args) -> int:
     from ..run.plan import robot_geometry
     from ..run.scenario_io import load_scenario
     from ..verification.command import measured_file
-    from ..verification.registration_motion import save_registration
+    from ..verification.registration_command import save_registration
 
     for dest, what in NOT_FOR_REGISTER:
         if getattr(args, dest) is not None:
