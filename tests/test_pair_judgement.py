@@ -244,3 +244,128 @@ def test_the_pairs_options_reach_verify_as_given(tmp_path):
     with pytest.raises(InvalidConfigError, match="--measured-max-gap 20 ms"):
         pair(max_gap_s=0.02)  # the camera's steps are 26.5-36.5 ms
     assert pair(frame="base").internal.frame.how == "base"
+
+
+# -- the pair's relative latency on the internal's clock -------------------------------------------
+
+
+class _Motion:
+    """A reference of sines (evaluate(t) -> (poses,)): rotations a 2 deg tilt of 5 s about X,
+    translations a 10 mm, 4 s breath along X and a quarter of it on Y; ``only_x`` the
+    surrogate's, a 4 mm, 4 s sine on X 0.3 s ahead with its second harmonic."""
+
+    end_time = None
+
+    def __init__(self, only_x=False):
+        self.only_x = only_x
+
+    def evaluate(self, t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        x = np.zeros((t.size, 6))
+        if self.only_x:
+            phi = 2 * np.pi * (t + 0.3) / 4.0
+            x[:, 3] = 4e-3 * (np.sin(phi) + 0.25 * np.sin(2 * phi))
+            return (x,)
+        x[:, 0] = math.radians(1.0) * np.sin(2 * np.pi * t / 5.0)
+        x[:, 3] = 5e-3 * np.sin(2 * np.pi * t / 4.0)
+        x[:, 4] = 0.25 * x[:, 3]
+        return (x,)
+
+
+#: The internal's clock shift (the measured time + D_I = the reference's), s; the lags put in
+#: on the internal's clock, s: its translations', its rotations' and the surrogate's.
+D_I, LAG_TRANSLATION, LAG_ROTATION, LAG_SURROGATE = -5.0, 0.002, 0.03, 0.05
+
+
+def _pair(seen, surrogate_from=None, nan_row=None):
+    """(internal, its surrogate reference, the surrogate measured): the internal's samples on
+    its reference's clock at a camera's uneven steps over 0-30 s, its translations
+    LAG_TRANSLATION late and its rotations LAG_ROTATION late, ``seen`` (6,) the axes it
+    measured (the others NaN); the surrogate's samples every 20 ms on the measured clock
+    LAG_SURROGATE late, from ``surrogate_from`` (measured clock, s) on."""
+    steps = np.random.default_rng(3).uniform(0.0265, 0.0365, 1000)
+    t = np.cumsum(steps)
+    t = t[t < 30.0]
+    internal_reference, surrogate_reference = _Motion(), _Motion(only_x=True)
+    x_d = internal_reference.evaluate(t)[0]
+    x = np.hstack(
+        [
+            internal_reference.evaluate(t - LAG_ROTATION)[0][:, :3],
+            internal_reference.evaluate(t - LAG_TRANSLATION)[0][:, 3:],
+        ]
+    )
+    x[:, ~np.asarray(seen, dtype=bool)] = np.nan
+    if nan_row is not None:
+        x[nan_row] = np.nan  # a sample the tracker lost
+    s_t = np.arange(t[0] - D_I if surrogate_from is None else surrogate_from, 36.0, 0.02)
+    s_poses = surrogate_reference.evaluate(s_t + D_I - LAG_SURROGATE)[0]
+    internal = SimpleNamespace(
+        result=SimpleNamespace(t=t, x=x, x_d=x_d),
+        shift_s=D_I,
+        measured=SimpleNamespace(measured=np.asarray(seen, dtype=bool)),
+    )
+    measured_x = np.array([False, False, False, True, False, False])
+    surrogate = SimpleNamespace(t=s_t, poses=s_poses, measured=measured_x)
+    return internal, surrogate_reference, surrogate
+
+
+def test_the_pair_s_lags_are_each_motion_s_own_along_what_it_measured():
+    from stewart_drake.verification.pair_judgement import pair_relative_latency
+
+    every = np.ones(6, dtype=bool)
+    lat = pair_relative_latency(*_pair(every), 1.5)
+    # The internal's along its translations' principal direction (its rotations lag otherwise).
+    assert lat.internal_lag_s == pytest.approx(LAG_TRANSLATION, abs=2e-5)
+    assert lat.external_lag_s == pytest.approx(LAG_SURROGATE, abs=2e-5)
+    assert lat.relative_s == pytest.approx(LAG_TRANSLATION - LAG_SURROGATE, abs=3e-5)
+    np.testing.assert_allclose(lat.direction, np.array([1.0, 0.25, 0.0]) / math.hypot(1, 0.25))
+    # A tracker of rotations alone: the internal's lag is its rotations'.
+    rotations = np.array([True, True, True, False, False, False])
+    lat = pair_relative_latency(*_pair(rotations), 1.5)
+    assert lat.internal_lag_s == pytest.approx(LAG_ROTATION, abs=2e-5)
+    # One translation measured: the others take no part (they lag as the measured one here).
+    z_less = np.array([False, False, False, True, False, False])
+    assert pair_relative_latency(*_pair(z_less), 1.5).internal_lag_s == pytest.approx(
+        LAG_TRANSLATION, abs=2e-5
+    )
+
+
+def test_the_pair_compares_only_where_both_measured_and_each_sample_it_has():
+    from stewart_drake.base.lag import inner_mask
+    from stewart_drake.verification.pair_judgement import pair_relative_latency
+
+    every = np.ones(6, dtype=bool)
+    # The surrogate's file starts 12 s later on the measured clock: the internal's samples
+    # before it are not compared, rather than against its first sample held.
+    internal, reference, surrogate = _pair(every, surrogate_from=17.0)
+    lat = pair_relative_latency(internal, reference, surrogate, 1.5)
+    t = internal.result.t
+    both = t[t - D_I >= 17.0]
+    assert lat.samples == np.count_nonzero(inner_mask(both, 0.5))
+    assert lat.external_lag_s == pytest.approx(LAG_SURROGATE, abs=2e-5)
+    # A sample the tracker lost is left out, not compared as the reference.
+    lost = pair_relative_latency(*_pair(every, nan_row=400), 1.5)
+    whole = pair_relative_latency(*_pair(every), 1.5)
+    assert lost.samples == whole.samples - 1
+    assert lost.internal_lag_s == pytest.approx(LAG_TRANSLATION, abs=2e-5)
+
+
+def test_a_surrogate_lag_beyond_the_usual_search_is_searched_wider_only_then():
+    from stewart_drake.base.pair_figures import LAG_SEARCH_S
+    from stewart_drake.verification import pair_judgement
+
+    every = np.ones(6, dtype=bool)
+    internal, reference, surrogate = _pair(every)
+    narrow = pair_judgement.pair_relative_latency(internal, reference, surrogate, 1.5)
+    # The usual search's samples: those more than LAG_SEARCH_S from either end.
+    from stewart_drake.base.lag import inner_mask
+
+    assert narrow.samples == np.count_nonzero(inner_mask(internal.result.t, LAG_SEARCH_S))
+    # The surrogate 0.9 s later still: beyond the usual +-0.5 s, found by the +-1.5 s search,
+    # over the samples more than 1.5 s from either end of where both were measured.
+    late = SimpleNamespace(t=surrogate.t + 0.9, poses=surrogate.poses, measured=surrogate.measured)
+    wide = pair_judgement.pair_relative_latency(internal, reference, late, 1.5)
+    assert wide.external_lag_s == pytest.approx(LAG_SURROGATE + 0.9, abs=2e-5)
+    t = internal.result.t
+    both = t[t - D_I >= late.t[0]]
+    assert wide.samples == np.count_nonzero(inner_mask(both, 1.5))
