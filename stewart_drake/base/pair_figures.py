@@ -63,7 +63,7 @@ def _check_record(t: np.ndarray, max_s: float, uniform: bool = True) -> None:
 def lag_s(t, commanded, measured, max_s: float = LAG_SEARCH_S) -> float:
     """How late ``measured`` is behind ``commanded``, s: the shift d in [-max_s, max_s] that
     makes measured(t) - commanded(t - d) least in RMS once their mean difference (a constant
-    offset) is removed; ``commanded`` linearly interpolated; the package's one lag search
+    offset) is removed; ``commanded`` joined by a cubic spline; the package's one lag search
     (:func:`~stewart_drake.base.lag.signal_lag`: every shift by FFT, then to a microsecond) over
     the samples more than ``max_s`` from either end; NaN for a command that does not move.
 

@@ -92,7 +92,8 @@ def _derived_inputs(args) -> list:
 
 
 def _cmd_calibrate(args) -> int:
-    """``stewart-drake calibrate``: one of its three modes, each checked before any work."""
+    """``stewart-drake calibrate``: one of its modes (identify, ``--plan``, ``--rehearse``,
+    ``--join``, ``--register``), each checked before any work."""
     from ..base.errors import InvalidConfigError
 
     if args.register is not None:
