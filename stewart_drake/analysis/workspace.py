@@ -26,6 +26,7 @@ import numpy as np
 from ..base.checks import check_int, check_memory
 from ..base.errors import IncompleteResultsError, InvalidConfigError
 from ..base.fileio import atomic_write
+from ..base.measures import rms_per_axis
 from ..execution.runners import JobFailure, ProcessRunner, SerialRunner
 from ..plant.admissible import classify
 from ..robot import kinematics, limits, statics
@@ -233,7 +234,7 @@ def summarize_dynamic_torques(geometry: StewartGeometry, t, x, T) -> dict:
     return {
         "peak": peak,
         "peak_t": t[k],
-        "rms": np.sqrt(np.mean(T * T, axis=0)),
+        "rms": rms_per_axis(T),
         "bottleneck": int(np.argmax(peak)),
         "static_peak": static_peak,
         "dynamic_over_static": peak / static_peak,

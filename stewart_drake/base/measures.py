@@ -1,5 +1,6 @@
-"""The measures of a sampled motion's error, once for every caller: the per-axis RMS and peak,
-and the translation's and rotation's RMS of pose errors.
+"""The measures of a sampled signal, once for every caller: the per-axis RMS and peak (of a
+motion's error, the motors' torques, a basis's columns), and the translation's and rotation's
+RMS of pose errors.
 
 A pose error is (n, 6), the rotation first (roll, pitch, yaw, rad), then the translation (X, Y,
 Z, m), as the package writes poses. The arrays may be float32 (a long run's logs) or float64;

@@ -40,7 +40,7 @@ from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError, StewartError
-from ..base.measures import rms_translation_rotation
+from ..base.measures import rms_per_axis, rms_translation_rotation
 from ..robot.forward_kinematics import encoder_pose_noise
 from .contract import LearnerContext
 from .feedforward_basis import (
@@ -183,7 +183,7 @@ class FeedforwardTuningLearner(LeafSystem):
         self._table_cache: tuple | None = None
         # the basis scales: RMS over the first stretch (a basis function at rest scales to one)
         phi0 = self._basis(0)
-        scale = np.sqrt(np.mean(phi0**2, axis=0))
+        scale = rms_per_axis(phi0)
         self.scale = np.where(scale > 1e-12, scale, 1.0)
 
         self._x_d = self.DeclareVectorInputPort("x_d", 18)

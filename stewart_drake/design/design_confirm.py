@@ -29,6 +29,7 @@ import numpy as np
 
 from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, StewartError
+from ..base.measures import rms_per_axis
 from ..base.tables import markdown_row, markdown_table
 from ..control.lqi.driver import LqiDriver
 from ..robot.kinematics import jacobian
@@ -281,7 +282,7 @@ def _figures(job: MotionRun, result) -> dict:
     f = fidelity(result.t, result.x, result.x_d)
     T = np.asarray(result.T, dtype=float)
     peak_T = float(np.abs(T).max())
-    rms_T = float(np.sqrt(np.mean(np.square(T), axis=0)).max())
+    rms_T = float(rms_per_axis(T).max())
     x = np.asarray(result.x, dtype=float)
     theta_dot = np.einsum("nij,nj->ni", jacobian(geometry, x[:, :6]), x[:, 6:12])
     peak_speed = float(np.abs(theta_dot).max())

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..base.errors import InvalidConfigError, InvalidGeometryError, StewartError
+from ..base.measures import rms_per_axis
 from ..plant import admissible
 from ..plant.clearance import ClearanceModel
 from ..robot import limits, statics
@@ -298,7 +299,7 @@ def _per_motion(task: TaskSamples, T, theta_dot) -> dict:
         Ti, wi = np.abs(T[mine]), np.abs(theta_dot[mine])
         per_motion[label] = {
             "peak_torque_Nm": float(Ti.max()),
-            "rms_torque_Nm": float(np.sqrt(np.mean(Ti**2, axis=0)).max()),
+            "rms_torque_Nm": float(rms_per_axis(Ti).max()),
             "peak_speed_rad_s": float(wi.max()),
         }
     return per_motion

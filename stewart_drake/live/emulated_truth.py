@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..base.measures import peak_per_axis, rms_per_axis
+
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 
 
@@ -60,17 +62,16 @@ def truth_lines(sd, truth, window, floor, emulator=None) -> list[str]:
     if len(e_true) == 0 or len(e_read) == 0:
         return ["the emulator's true pose: no step of its plant inside the measured window"]
 
-    def cell(e, k):
-        return f"{1e3 * np.sqrt(np.mean(e[:, k] ** 2)):.3g} ({1e3 * np.max(np.abs(e[:, k])):.3g})"
+    def cells(e):
+        return [f"{1e3 * r:.3g} ({1e3 * p:.3g})" for r, p in zip(rms_per_axis(e), peak_per_axis(e))]
 
+    true, read = cells(e_true), cells(e_read)
     lines = [
         f"on the emulator, t in [{window[0]:g}, {window[1]:g}] s, RMS (peak), mrad | mm:",
         f"  {'':>6}  {'true pose':>18}  {'encoders read':>18}  {'floor':>7}",
     ]
     for k, axis in enumerate(AXES):
-        lines.append(
-            f"  {axis:>6}  {cell(e_true, k):>18}  {cell(e_read, k):>18}  {1e3 * floor[k]:7.3g}"
-        )
+        lines.append(f"  {axis:>6}  {true[k]:>18}  {read[k]:>18}  {1e3 * floor[k]:7.3g}")
     lines.append(
         "  the true pose is the emulator's plant; the encoders cannot see a crank within its "
         "count (the floor: half a count, uniform, through J^-1) nor what bends between the "

@@ -87,7 +87,7 @@ def axis_figures(t, x, x_d, measured) -> dict:
         period, share = dominant_period(t, x[:, k])
         ref_period, ref_share = dominant_period(t, x_d[:, k])
         out[AXES[k]] = {
-            "rms": float(np.sqrt(np.mean((x[:, k] - x_d[:, k]) ** 2))),
+            "rms": float(rms_per_axis(x[:, k] - x_d[:, k])),
             "motion_rms": math.sqrt(var_q),
             "reference_rms": math.sqrt(var_r),
             "gain": cov / var_r if var_r > 0 else math.nan,
