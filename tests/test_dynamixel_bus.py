@@ -136,6 +136,25 @@ def test_bad_settings_are_refused_before_the_port_is_opened(kw, match):
         DynamixelBus(**args)
 
 
+def test_the_bus_its_check_and_its_scenario_section_default_alike():
+    """A bus built without a model, a temperature limit or a watchdog writes what a scenario's
+    ``bus:`` section without them would: the driver's, the check's and the section's defaults
+    are the same values."""
+    import dataclasses
+    import inspect
+
+    names = ("model", "temperature_limit_C", "watchdog_s")
+    config = {f.name: f.default for f in dataclasses.fields(servos.DynamixelBusConfig)}
+    for function in (DynamixelBus.__init__, servos.check_bus_settings):
+        parameters = inspect.signature(function).parameters
+        assert {n: parameters[n].default for n in names} == {n: config[n] for n in names}
+    assert (config["model"], config["temperature_limit_C"], config["watchdog_s"]) == (
+        "XM430-W350-T",
+        70,
+        0.1,
+    )
+
+
 def test_a_missing_sdk_names_the_extra(monkeypatch):
     monkeypatch.setitem(sys.modules, "dynamixel_sdk", None)
     with pytest.raises(MissingExtraError, match=r"stewart-drake\[robot\]"):

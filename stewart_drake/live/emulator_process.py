@@ -28,6 +28,7 @@ import numpy as np
 from ..base.errors import BusError
 from ..robot.kinematics import X_HOME
 from ..station.bus.emulator_config import EMULATED_BUS
+from ..station.bus.servos import DEFAULT_MODEL
 
 
 @dataclass(frozen=True)
@@ -279,7 +280,7 @@ class EmulatorProcess:
         self,
         x0=X_HOME,
         ids=(1, 2, 3, 4, 5, 6),
-        model: str = "XM430-W350-T",
+        model: str = DEFAULT_MODEL,
         scenario=None,
         tick_s: float = 0.001,
         max_step_s: float = 0.02,

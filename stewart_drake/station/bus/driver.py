@@ -38,6 +38,9 @@ from . import protocol as p
 from .position_mode import PositionMode, checked_gains
 from .protocol import BusState
 from .servos import (
+    DEFAULT_MODEL,
+    DEFAULT_TEMPERATURE_LIMIT_C,
+    DEFAULT_WATCHDOG_S,
     DynamixelBusConfig,
     SurrogateServoConfig,
     check_bus_settings,
@@ -90,13 +93,13 @@ class DynamixelBus(PositionMode):
         port: str,
         baud_rate: int,
         ids,
-        model: str = "XM430-W350-T",
+        model: str = DEFAULT_MODEL,
         zero_counts=None,
         directions=None,
         current_limit_A: float | None = None,
-        temperature_limit_C: int = 70,
+        temperature_limit_C: int = DEFAULT_TEMPERATURE_LIMIT_C,
         position_limits_counts: tuple[int, int] | None = None,
-        watchdog_s: float = 0.1,
+        watchdog_s: float = DEFAULT_WATCHDOG_S,
         reply_timeout_s: float | None = None,
         timing_window: int = 100_000,
         surrogate: SurrogateServoConfig | None = None,

@@ -33,7 +33,7 @@ from .bus_timing import BusTiming
 from .servo_firmware import FirmwareLoops
 from .servo_models import FirstOrderServos, ServoBackend
 from .servo_table import ServoTable
-from .servos import servo_spec
+from .servos import DEFAULT_MODEL, servo_spec
 
 #: The X series' control table size: addresses 0..146 (Present Temperature is the last used).
 TABLE_SIZE = p.X_SERIES.size
@@ -94,7 +94,7 @@ class BusEmulator(FirmwareLoops):
     def __init__(
         self,
         ids,
-        model: str = "XM430-W350-T",
+        model: str = DEFAULT_MODEL,
         backend: ServoBackend | None = None,
         zero_counts=None,
         tick_s: float = 0.002,
@@ -575,7 +575,7 @@ def main(argv=None) -> None:
 
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("--ids", type=int, nargs="+", default=[1, 2, 3, 4, 5, 6])
-    parser.add_argument("--model", default="XM430-W350-T")
+    parser.add_argument("--model", default=DEFAULT_MODEL)
     args = parser.parse_args(argv)
     with BusEmulator(args.ids, args.model) as emulator:
         print(emulator.port, flush=True)

@@ -136,6 +136,14 @@ def _p_spec(name: str, model_number: int, limit_mA: int, continuous_A: float):
     )
 
 
+#: The servos' model on a bus that names none: the reference robot's (docs/motor_catalogue.md).
+DEFAULT_MODEL = "XM430-W350-T"
+#: The Temperature Limit written to every servo unless configured, deg C (at most 80).
+DEFAULT_TEMPERATURE_LIMIT_C = 70
+#: The servos' bus watchdog unless configured, s: the torque goes off when no command reaches
+#: them for this long.
+DEFAULT_WATCHDOG_S = 0.1
+
 #: The models the bus knows; stall figures at 12 V (e-Manual "Specifications"); the
 #: DYNAMIXEL-P's continuous figures at 24 V (:func:`_p_spec`).
 SERVO_SPECS: dict[str, ServoSpec] = {
@@ -206,13 +214,13 @@ class BusSettings:
 def check_bus_settings(
     baud_rate,
     ids,
-    model: str = "XM430-W350-T",
+    model: str = DEFAULT_MODEL,
     zero_counts=None,
     directions=None,
     current_limit_A: float | None = None,
-    temperature_limit_C: int = 70,
+    temperature_limit_C: int = DEFAULT_TEMPERATURE_LIMIT_C,
     position_limits_counts=None,
-    watchdog_s: float = 0.1,
+    watchdog_s: float = DEFAULT_WATCHDOG_S,
     reply_timeout_s: float | None = None,
     prefix: str = "",
 ) -> BusSettings:
@@ -471,13 +479,13 @@ class DynamixelBusConfig:
     port: str = "/dev/ttyUSB0"
     baud_rate: int = 1_000_000
     ids: list[int] = field(default_factory=lambda: [1, 2, 3, 4, 5, 6])
-    model: str = "XM430-W350-T"
+    model: str = DEFAULT_MODEL
     zero_counts: list[int] = field(default_factory=lambda: [2048] * 6)
     directions: list[int] = field(default_factory=lambda: [1] * 6)
     current_limit_A: float | None = None
-    temperature_limit_C: int = 70
+    temperature_limit_C: int = DEFAULT_TEMPERATURE_LIMIT_C
     position_limits_counts: list[int] = field(default_factory=lambda: [0, 4095])
-    watchdog_s: float = 0.1
+    watchdog_s: float = DEFAULT_WATCHDOG_S
     reply_timeout_s: float | None = None
     read_retries: int = 1
     max_deadline_misses: int = 10
