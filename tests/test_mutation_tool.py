@@ -265,3 +265,61 @@ def test_a_kernel_s_decorator_becomes_a_call_after_its_last_line():
     assert namespace["reference"] == ["a", "c"]
     assert namespace["b"](1) == 4
     assert not getattr(namespace["b"], "kernel", False)
+
+
+def test_a_run_of_some_modules_replaces_their_rows_and_keeps_the_rest():
+    """``--module``: the module's row replaces its old row where it stood, a module new to the
+    table follows the last row, and the prose under the table stays."""
+    old = "\n".join(
+        [
+            "# title",
+            "",
+            "| module | score |",
+            "|---|---:|",
+            "| `stewart_drake/a.py` | 90.0 % |",
+            "| `stewart_drake/b.py` | 80.0 % |",
+            "",
+            "Prose written by hand under the table.",
+        ]
+    )
+    new = "\n".join(
+        [
+            "# title",
+            "",
+            "| module | score |",
+            "|---|---:|",
+            "| `stewart_drake/b.py` | 86.5 % |",
+            "| `stewart_drake/c.py` | 91.0 % |",
+            "",
+            "The whole run took 2.0 min on this machine.",
+        ]
+    )
+    merged = mutation.merged_summary(old, new).splitlines()
+    assert merged[4:8] == [
+        "| `stewart_drake/a.py` | 90.0 % |",
+        "| `stewart_drake/b.py` | 86.5 % |",
+        "| `stewart_drake/c.py` | 91.0 % |",
+        "",
+    ]
+    assert merged[-1] == "Prose written by hand under the table."
+    assert "The whole run took 2.0 min on this machine." not in merged
+
+
+def test_a_run_of_some_modules_replaces_their_survivor_sections_and_keeps_the_rest():
+    old = (
+        "# Surviving mutants\n\nintro\n\n"
+        "## Survivors in `stewart_drake/a.py`\n\n- `x_f__mutmut_1` (survived): old a\n\n"
+        "## Survivors in `stewart_drake/b.py`\n\n- `x_g__mutmut_2` (survived): old b\n"
+    )
+    new = (
+        "# Surviving mutants\n\nanother intro\n\n"
+        "## Survivors in `stewart_drake/a.py`\n\nNone.\n\n"
+        "## Survivors in `stewart_drake/c.py`\n\n- `x_h__mutmut_3` (survived): new c\n"
+    )
+    merged = mutation.merged_survivors(old, new)
+    assert merged == (
+        "# Surviving mutants\n\nintro\n\n"
+        "## Survivors in `stewart_drake/a.py`\n\nNone.\n\n"
+        "## Survivors in `stewart_drake/b.py`\n\n- `x_g__mutmut_2` (survived): old b\n\n"
+        "## Survivors in `stewart_drake/c.py`\n\n- `x_h__mutmut_3` (survived): new c\n"
+    )

@@ -6,7 +6,8 @@ tests would let through. Writes the score per module and every survivor with its
     pip install -e ".[test,mutation]"
     python tools/mutation.py                          # all modules: docs/mutation.md and
                                                       # tools/mutation_survivors.md
-    python tools/mutation.py --module statics         # one module (a key's last part)
+    python tools/mutation.py --module statics         # one module (a key's last part): its
+                                                      # row and survivors replace theirs
     python tools/mutation.py --out /tmp/mutation.md --survivors /tmp/survivors.md  # elsewhere
     python tools/mutation.py --work /tmp/mut          # keep the scratch copies there
 
@@ -736,9 +737,67 @@ def survivor_report(
     return "\n".join(lines).rstrip() + "\n"
 
 
+def merged_summary(old: str, new: str) -> str:
+    """``old`` (docs/mutation.md as it stands) with the table rows of ``new`` (a run of some
+    modules) put in: a module's row replaces its old row where it stood, a module without one is
+    added after the table's last row; every other line of ``old``, the prose written under the
+    table included, is kept as it was."""
+    rows = {_row_module(line): line for line in new.splitlines() if _row_module(line)}
+    lines = old.splitlines()
+    for i, line in enumerate(lines):
+        module = _row_module(line)
+        if module in rows:
+            lines[i] = rows.pop(module)
+    last = max((i for i, line in enumerate(lines) if _row_module(line)), default=None)
+    if last is None:
+        return new
+    lines[last + 1 : last + 1] = list(rows.values())
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def _row_module(line: str) -> str | None:
+    """The module a score table's row is of (its first cell's path), None for any other line."""
+    if line.startswith("| `stewart_drake/"):
+        return line.split("`", 2)[1]
+    return None
+
+
+def merged_survivors(old: str, new: str) -> str:
+    """``old`` (tools/mutation_survivors.md as it stands) with the module sections of ``new`` (a
+    run of some modules) put in: a module's section replaces its old one where it stood, a new
+    module's section goes at the end; the other modules' sections and the lines before the first
+    section are kept as they were."""
+    old_head, old_sections = _sections(old)
+    new_sections = _sections(new)[1]
+    for module, text in new_sections.items():
+        old_sections[module] = text  # a dict keeps an old key's place
+    body = "".join(text.rstrip("\n") + "\n\n" for text in old_sections.values())
+    return (old_head + body).rstrip() + "\n"
+
+
+def _sections(text: str) -> tuple[str, dict[str, str]]:
+    """The lines before the first ``## Survivors in `module``` heading, and each module's section
+    (its heading to the next), in order."""
+    head, sections, module = [], {}, None
+    for line in text.splitlines(keepends=True):
+        if line.startswith("## Survivors in `"):
+            module = line.split("`", 2)[1]
+            sections[module] = ""
+        if module is None:
+            head.append(line)
+        else:
+            sections[module] += line
+    return "".join(head), sections
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--module", action="append", help="a module's file stem (repeatable)")
+    parser.add_argument(
+        "--module",
+        action="append",
+        help="a module's file stem (repeatable); its row and survivors replace theirs in --out "
+        "and --survivors, the other modules' are kept",
+    )
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "mutation.md")
     parser.add_argument("--survivors", type=Path, default=SURVIVORS_FILE)
     parser.add_argument("--work", type=Path, help="folder for the scratch copies (kept)")
@@ -775,6 +834,11 @@ def main(argv=None) -> int:
     work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
     results = [run_module(m, t, work, args.limit) for m, t in chosen.items()]
     summary, survivors = report(results, accounts, before)
+    if args.module:  # some modules: their rows and sections go into the reports as they stand
+        if args.out.is_file():
+            summary = merged_summary(args.out.read_text(), summary)
+        if args.survivors.is_file():
+            survivors = merged_survivors(args.survivors.read_text(), survivors)
     args.out.write_text(summary)
     args.survivors.write_text(survivors)
     if args.json:
