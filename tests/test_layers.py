@@ -151,6 +151,37 @@ def test_the_walker_sees_local_and_relative_imports():
         LAYERS[_layer("stewart_drake.nowhere.x")]
 
 
+LIVE, SESSION = "stewart_drake.live.", "stewart_drake.live.session"
+
+
+def _not_driving_the_robot(graph: dict) -> list:
+    """The modules of ``live`` that do not take part in driving the robot: a module takes part
+    when it imports the servo bus (``station.bus``) or the session, or a module of ``live`` that
+    takes part, or when the session imports it (its watchdog, its real-time loop, its
+    teleoperation)."""
+    live = [m for m in graph if m.startswith(LIVE)]
+    driving = {SESSION} | {
+        m for m in live if any(t.startswith("stewart_drake.station.bus") for t in graph[m])
+    }
+    driving |= {m for m in graph[SESSION] if m.startswith(LIVE)}
+    grew = True
+    while grew:
+        more = {m for m in live if m not in driving and graph[m] & driving}
+        driving |= more
+        grew = bool(more)
+    return sorted(set(live) - driving)
+
+
+def test_live_holds_only_what_drives_the_robot():
+    """``live`` is the robot live (the session, what it runs, the commands that open a bus);
+    what judges or reports without touching the robot belongs to verification or the studies."""
+    graph = import_graph()
+    assert _not_driving_the_robot(graph) == []
+    # the check sees a module of live that neither drives the bus nor is the session's
+    graph[LIVE + "verdict_of_a_file"] = {"stewart_drake.base.measures"}
+    assert _not_driving_the_robot(graph) == [LIVE + "verdict_of_a_file"]
+
+
 def test_pyproject_installs_every_package():
     """A package missing from pyproject's explicit list works from a checkout and is absent from
     a wheel: the list holds every folder of the package with an __init__.py."""

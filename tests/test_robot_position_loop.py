@@ -57,8 +57,7 @@ def test_the_phantom_on_its_servos_own_loop_follows_breathing_within_tens_of_mic
     within 10 um RMS of each other (the loop's clock pairs them); every period one sync write of
     goals; torque off at the end. A goal taken without the lead (the reference's own instant)
     would trail by 19 ms, 0.3 mm at the breath's speed. Nothing compiled after torque on."""
-    from stewart_drake.live.emulated_truth import truth_and_reading
-    from stewart_drake.live.emulator_process import start_emulator
+    from stewart_drake.live.emulator_process import start_emulator, truth_and_reading
 
     scenario = _phantom_on_its_servos_loop(8.0)
     assert scenario.emulator.clock == "loop" and scenario.emulator.servos == "realistic"

@@ -502,12 +502,12 @@ def _print_run(run, scenario, sd, emulator) -> None:
 
 def _truth_lines(scenario, sd, emulator, metrics) -> list[str]:
     """A rehearsal's true pose (the emulator's plant) against what the encoders read, over the
-    metrics' window (:func:`~.emulated_truth.truth_lines`), with the encoders' floor at the
+    metrics' window (:func:`~.emulator_process.truth_lines`), with the encoders' floor at the
     reference's mean pose there."""
     import numpy as np
 
     from ..analysis.error_budget import quantization_floor
-    from .emulated_truth import truth_lines
+    from .emulator_process import truth_lines
 
     window = metrics["window_s"]
     t = np.linspace(window[0], window[1], 50)

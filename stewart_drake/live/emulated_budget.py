@@ -58,8 +58,7 @@ def _errors(scenario, x0, out, say) -> tuple[np.ndarray, np.ndarray, tuple]:
     """One session of ``scenario`` on its emulator resting at ``x0``, its logs in ``out``:
     (true errors (n, 6), encoder errors (m, 6), the window (start, end) s): the motion's last
     three quarters (its first quarter and the homing before it left out)."""
-    from .emulated_truth import truth_and_reading
-    from .emulator_process import EMULATED_LOOP_TIMEOUT_S, start_emulator
+    from .emulator_process import EMULATED_LOOP_TIMEOUT_S, start_emulator, truth_and_reading
     from .session import run_on_robot
 
     held: dict = {}

@@ -1,13 +1,13 @@
-"""live/emulated_truth: the emulator's true pose and the encoders' pose paired with the reference
-on the run's clock (a known motion, known offsets: the errors come back as put in), and the
-lines a rehearsal prints."""
+"""The emulator's truth (live/emulator_process): its true pose and the encoders' pose paired
+with the reference on the run's clock (a known motion, known offsets: the errors come back as
+put in), and the lines a rehearsal prints."""
 
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from stewart_drake.live.emulated_truth import truth_and_reading, truth_lines
+from stewart_drake.live.emulator_process import truth_and_reading, truth_lines
 
 
 class Ramp:
