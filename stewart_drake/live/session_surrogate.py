@@ -4,17 +4,18 @@ carriage's command on the run's clock (with the platform's lag matched, when the
 it), and the pair's relative latency from the encoders at the end, judged.
 
 **The relative latency from the encoders.**
-Each axis is judged against its own reference on the run's one clock (the Diagram's time t of
-each control period, logged with the period's reading):
+Each axis is judged against its own reference on the reference's own clock, the one clock of
+both references (the encoder log's ``t_path``: the Diagram's time of each control period
+warped by the run's start and end ramps, the clock ``verify --surrogate`` reads the log on):
 
 - the **lag** L of an axis is the shift delta that minimises the RMS difference between what
   its encoders measured, y(t_k), and its reference shifted later by delta, c(t_k - delta), less
-  their mean difference (a constant offset, as the Diagram's pair report removes it) (linearly
-  interpolated between its logged samples; delta searched in [-``max_lag_s``,
-  +``max_lag_s``], every shift on the samples' step at once by FFT, then refined by a bounded
-  scalar minimisation to 1 us: :func:`stewart_drake.base.lag.signal_lag`, IntERAct's RMSE
-  alignment, Kaczynska et al. 2026, in continuous shifts). L > 0: the axis moves after its
-  reference.
+  their mean difference (a constant offset, as the Diagram's pair report removes it) (the
+  reference joined between its logged samples by a cubic spline; delta searched in
+  [-``max_lag_s``, +``max_lag_s``], every shift on the samples' step at once by FFT, then refined
+  by a bounded scalar minimisation to 1 us: :func:`stewart_drake.base.lag.signal_lag`,
+  IntERAct's RMSE alignment, Kaczynska et al. 2026, in continuous shifts). L > 0: the axis moves
+  after its reference.
 - the platform's y and c: its pose from the crank encoders (forward kinematics) and the
   reference's pose, along the **principal direction** of the reference's translations over the
   judged window (:func:`~stewart_drake.base.signals.principal_direction`, as the Diagram's pair
@@ -224,7 +225,8 @@ class RelativeLatency:
         against = "s_ref, its trace" if self.servo_lag_s == self.servo_lag_s else "s_cmd"
         what = (
             "relative latency, platform after surrogate (each axis's lag behind its own "
-            f"reference on the run's clock, from its encoders: the carriage's s against {against}"
+            f"reference on the reference's clock, from its encoders: the carriage's s against "
+            f"{against}"
             f", the platform's {self.platform_axis} against the reference's)"
         )
         matched = ""

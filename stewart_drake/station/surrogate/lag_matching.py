@@ -28,8 +28,8 @@ has seen :data:`MIN_HISTORY_S` of readings and a reference moving at ``min_speed
 
 Nothing here is fitted to the verdict: the delay acts on the carriage's command as the run goes,
 from the encoders' past readings; the relative latency judged at the end compares each motion
-with its own reference on the run's clock (the carriage's before any delay), so a matching that
-did not match is seen there.
+with its own reference (the carriage's before any delay), so a matching that did not match is
+seen there.
 """
 
 import math
