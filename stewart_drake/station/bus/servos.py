@@ -18,6 +18,7 @@ annotations: this module must not use ``from __future__ import annotations``.
 
 import math
 from dataclasses import dataclass, field
+from operator import attrgetter
 
 import numpy as np
 
@@ -551,19 +552,8 @@ class DynamixelBusConfig:
         expected = self.hardware(control_period_s)
         if hardware is None:
             return
-        for name, got, want in (
-            ("motors.name", hardware.motors.name, expected.motors.name),
-            (
-                "encoders.counts_per_rev",
-                hardware.encoders.counts_per_rev,
-                expected.encoders.counts_per_rev,
-            ),
-            (
-                "computation_delay_periods",
-                hardware.computation_delay_periods,
-                expected.computation_delay_periods,
-            ),
-        ):
+        for name in ("motors.name", "encoders.counts_per_rev", "computation_delay_periods"):
+            got, want = attrgetter(name)(hardware), attrgetter(name)(expected)
             if got != want:
                 raise InvalidConfigError(
                     f"hardware.{name} is {got!r} but the servos of bus.model {self.model} make "
