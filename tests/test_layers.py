@@ -182,6 +182,59 @@ def test_live_holds_only_what_drives_the_robot():
     assert _not_driving_the_robot(graph) == [LIVE + "verdict_of_a_file"]
 
 
+#: Lines a module of the package may hold, and a function from ``def`` to its end, docstring in.
+MAX_MODULE_LINES, MAX_FUNCTION_LINES = 600, 80
+#: The functions longer than that when the limit was set (docs/development.md, "Layout"): none
+#: may be added, and one that falls within the limit leaves the list.
+LONG_FUNCTIONS = {
+    "stewart_drake.verification.verify.verify",
+    "stewart_drake.control.servo.controller.CrankServoController.__init__",
+    "stewart_drake.analysis.error_budget.error_budget",
+    "stewart_drake.station.bus.emulator_config.EmulatorConfig.draw",
+    "stewart_drake.verification.command.cmd_verify",
+    "stewart_drake.verification.measured_verdict.judge",
+    "stewart_drake.run.scenario.Scenario.validate",
+}
+
+
+def _long_functions(tree: ast.Module, module: str) -> set:
+    """The qualified names of the functions of ``tree`` over :data:`MAX_FUNCTION_LINES`."""
+    found = set()
+
+    def visit(node, prefix):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                name = f"{prefix}.{child.name}"
+                if not isinstance(child, ast.ClassDef):
+                    if child.end_lineno - child.lineno + 1 > MAX_FUNCTION_LINES:
+                        found.add(name)
+                visit(child, name)
+
+    visit(tree, module)
+    return found
+
+
+def test_modules_and_functions_stay_within_their_lengths():
+    """No module over 600 lines (lcm-gen's generated types aside) and no function over 80 but
+    the listed ones: a module pressed against the limit is split by what it holds, a long
+    function into the steps it takes."""
+    big, long = [], set()
+    for path in PACKAGE.rglob("*.py"):
+        if path.parent.name == "lcmtypes":
+            continue
+        text = path.read_text()
+        lines = text.count("\n")
+        if lines > MAX_MODULE_LINES:
+            big.append(f"{path.relative_to(PACKAGE.parent)}: {lines} lines")
+        long |= _long_functions(ast.parse(text), _module_name(path))
+    assert not big, big
+    new, shorter = sorted(long - LONG_FUNCTIONS), sorted(LONG_FUNCTIONS - long)
+    assert not new and not shorter, f"over the limit: {new}; within it now: {shorter}"
+    # the check sees a long function, nested ones by their class's name
+    body = "\n".join(["class A:", "    def f(self):"] + ["        pass"] * MAX_FUNCTION_LINES)
+    assert _long_functions(ast.parse(body), "m") == {"m.A.f"}
+
+
 def test_pyproject_installs_every_package():
     """A package missing from pyproject's explicit list works from a checkout and is absent from
     a wheel: the list holds every folder of the package with an __init__.py."""
