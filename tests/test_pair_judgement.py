@@ -350,6 +350,31 @@ def test_the_pair_compares_only_where_both_measured_and_each_sample_it_has():
     assert lost.internal_lag_s == pytest.approx(LAG_TRANSLATION, abs=2e-5)
 
 
+def test_the_pair_s_samples_end_with_the_surrogate_s_file_and_its_reference():
+    """The internal's samples compared are those inside the surrogate's file, its first and last
+    samples' times included (put here exactly on two of the internal's, on the measured clock),
+    and inside the surrogate reference's span: a reference that ends at 22 s ends the pair
+    there."""
+    from stewart_drake.base.lag import inner_mask
+    from stewart_drake.verification.pair_judgement import pair_relative_latency
+
+    every = np.ones(6, dtype=bool)
+    internal, reference, surrogate = _pair(every)
+    t = internal.result.t
+    j, k = 100, 700  # the surrogate's file from the internal's sample j to its sample k
+    s_t = np.concatenate([[t[j] - D_I], np.arange(t[j] - D_I + 0.01, t[k] - D_I, 0.02)])
+    s_t = np.append(s_t, t[k] - D_I)
+    s_poses = reference.evaluate(s_t + D_I - LAG_SURROGATE)[0]
+    inside = SimpleNamespace(t=s_t, poses=s_poses, measured=surrogate.measured)
+    lat = pair_relative_latency(internal, reference, inside, 1.5)
+    assert lat.samples == np.count_nonzero(inner_mask(t[j : k + 1], 0.5))
+    assert lat.external_lag_s == pytest.approx(LAG_SURROGATE, abs=2e-5)
+    ending = _Motion(only_x=True)
+    ending.end_time = 22.0
+    lat = pair_relative_latency(internal, ending, surrogate, 1.5)
+    assert lat.samples == np.count_nonzero(inner_mask(t[t <= 22.0], 0.5))
+
+
 def test_a_surrogate_lag_beyond_the_usual_search_is_searched_wider_only_then():
     from stewart_drake.base.pair_figures import LAG_SEARCH_S
     from stewart_drake.verification import pair_judgement
@@ -369,3 +394,17 @@ def test_a_surrogate_lag_beyond_the_usual_search_is_searched_wider_only_then():
     t = internal.result.t
     both = t[t - D_I >= late.t[0]]
     assert wide.samples == np.count_nonzero(inner_mask(both, 1.5))
+
+
+def test_the_surrogate_s_own_match_is_noted_beyond_two_coarse_steps_either_way():
+    """The note that the surrogate alone matches its reference elsewhere: none at two of
+    verify's coarse steps from the pair's shift, one beyond, naming the side."""
+    from stewart_drake.verification.pair_judgement import _own_match_notes
+    from stewart_drake.verification.verify import COARSE_STEP_S
+
+    for apart in (2 * COARSE_STEP_S, -2 * COARSE_STEP_S, 0.0):
+        assert _own_match_notes(apart, "surrogate.csv", 1.5) == []
+    (later,) = _own_match_notes(2.5 * COARSE_STEP_S, "surrogate.csv", 1.5)
+    (earlier,) = _own_match_notes(-2.5 * COARSE_STEP_S, "surrogate.csv", 1.5)
+    assert "surrogate.csv matches its reference best" in later and " later than " in later
+    assert " earlier than " in earlier and "within +-1.5 s" in earlier

@@ -101,6 +101,21 @@ def test_the_relative_latency_is_the_delay_between_the_two_platforms(tmp_path, l
     assert pair.surrogate.fidelity["measured"] == ["X"]
 
 
+def test_the_relative_latency_holds_whatever_the_internal_s_clock_search_took(tmp_path):
+    """The internal's clock given 50 ms off and its own search held to +-10 ms: its clock takes
+    only part of its delay, the rest stays as its lag along its direction, and the pair's
+    relative latency and the internal's shift on the one clock are the same as unbounded."""
+    t = camera_clock()
+    internal = seen(3, TRACE, t, DELAY_S + 0.06, offset_mm=OFFSETS_MM[0], seed=1)
+    files = pair_files(tmp_path, internal=internal)
+    bounded = judge(*files, clock_offset_s=-5.40, max_latency_s=0.01)
+    left = bounded.internal.shift_s + DELAY_S + 0.06  # what the internal's clock did not take
+    assert 0.02 < left < 0.07
+    assert bounded.relative_latency_s == pytest.approx(0.06, abs=0.005)
+    assert -bounded.internal_shift_s == pytest.approx(DELAY_S + 0.06, abs=0.005)
+    assert bounded.judgement.passed
+
+
 @pytest.mark.parametrize("lag_s", [0.7, -0.9])
 def test_a_relative_latency_beyond_the_pair_s_usual_search_is_found_and_fails(tmp_path, lag_s):
     # Beyond the +-0.5 s every pair's relative latency searches first: searched again wider,

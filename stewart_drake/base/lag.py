@@ -155,7 +155,6 @@ def best_shift(
     shifts: tuple[float, float],
     step_s: float,
     offsets: bool,
-    refine_on: Callable[[float], np.ndarray] | None = None,
 ) -> float:
     """The shift d in [shifts] (measured time + d = the reference's time) of least score, s: the
     one search (module docstring): :func:`coarse_shift` over every shift, then
@@ -164,8 +163,6 @@ def best_shift(
     Args:
         t, y, weights, seen, step_s, offsets: as :func:`shift_scores`'s.
         shifts: (lo, hi) s, lo <= hi.
-        refine_on: the coarse shift -> (n,) bool, the samples the refinement compares (those
-            where the reference is defined at it, say); None: every sample.
     Raises:
         InvalidConfigError: shifts not finite or lo > hi; a step not > 0; fewer than 2 samples.
     """
@@ -177,12 +174,11 @@ def best_shift(
     if len(t) < 2:
         raise InvalidConfigError(f"a shift is searched over 2 samples or more, got {len(t)}")
     d0 = coarse_shift(t, y, weights, seen, (lo, hi), step_s, offsets)
-    use = np.ones(len(t), dtype=bool) if refine_on is None else refine_on(d0)
     # Within a step of d0 and inside the range: the interval's centre and half-width.
     a, b = max(d0 - step_s, lo), min(d0 + step_s, hi)
     if b - a <= 0.0:
         return a
-    return refine_shift(t[use], y[use], weights, seen, 0.5 * (a + b), 0.5 * (b - a), offsets)
+    return refine_shift(t, y, weights, seen, 0.5 * (a + b), 0.5 * (b - a), offsets)
 
 
 def inner_mask(t, max_lag_s: float) -> np.ndarray:
