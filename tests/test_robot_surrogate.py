@@ -495,9 +495,9 @@ NEEDS_INTERACT = pytest.mark.skipif(
 def test_interact_pairs_emulated_move_within_one_period_of_each_other(tmp_path, pair):
     """The internal trace on the platform and the respiratory trace on the surrogate's stage,
     emulated on the loop's clock, each measured from its encoders against its own reference
-    on the run's clock: with lag matching (the default) their relative latency is within one
-    control period, whatever the platform's own lag; the carriage's servo follows the command
-    it is given within a tenth of a period and 0.1 mm RMS."""
+    on the reference's own clock: with lag matching (the default) their relative latency is
+    within one control period, whatever the platform's own lag; the carriage's servo follows
+    the command it is given within a tenth of a period and 0.1 mm RMS."""
     from stewart_drake.references.traces import load_trace
 
     period = _shipped_period_s()
@@ -516,8 +516,10 @@ def test_interact_pairs_emulated_move_within_one_period_of_each_other(tmp_path, 
     # to within what the delay varies by over the run (its mean taken here).
     late = judged.matching_delay_s + judged.servo_lag_s
     assert abs(judged.surrogate_lag_s - late) < 0.2 * period
-    # The periods after the lead-in (the trace, its 1 s ramp at the end), less 0.5 s each end.
-    assert abs(judged.samples - (INTERACT_SECONDS + 1.0 - 2 * 0.5) / period) <= 2
+    # Timed on the reference's own clock, the periods more than the search's 0.5 s from its
+    # ends: the 1 s ramps at the start and the end each advance that clock 0.5 s, so these are
+    # the periods at full speed, the trace's 30 s less 0.5 s at each end.
+    assert abs(judged.samples - (INTERACT_SECONDS - 2 * 0.5) / period) <= 2
 
 
 @pytest.mark.slow
