@@ -323,3 +323,14 @@ def test_a_run_of_some_modules_replaces_their_survivor_sections_and_keeps_the_re
         "## Survivors in `stewart_drake/b.py`\n\n- `x_g__mutmut_2` (survived): old b\n\n"
         "## Survivors in `stewart_drake/c.py`\n\n- `x_h__mutmut_3` (survived): new c\n"
     )
+
+
+def test_a_standing_report_is_read_by_the_checked_reader_before_the_runs(tmp_path):
+    from stewart_drake.base.errors import CorruptFileError
+
+    assert mutation._standing_report(tmp_path / "none.md", "--out") is None
+    report = tmp_path / "mutation.md"
+    report.write_text("| `stewart_drake/a.py` | 90.0 % |\n")
+    assert mutation._standing_report(report, "--out") == "| `stewart_drake/a.py` | 90.0 % |\n"
+    with pytest.raises(CorruptFileError, match="--survivors report"):
+        mutation._standing_report(tmp_path, "--survivors")  # a folder

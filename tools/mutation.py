@@ -790,6 +790,15 @@ def _sections(text: str) -> tuple[str, dict[str, str]]:
     return "".join(head), sections
 
 
+def _standing_report(path: Path, option: str) -> str | None:
+    """The text of a report ``--module`` puts its rows into, read by the checked reader before
+    the runs (None where there is none yet)."""
+    if not path.exists():
+        return None
+    raw = read_checked(path, f"{option} report", MAX_INPUT_BYTES, "give a report this tool wrote")
+    return raw.decode("utf-8")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -827,6 +836,11 @@ def main(argv=None) -> int:
         raw = read_checked(args.before, "--before", MAX_INPUT_BYTES, "give a --json it wrote")
         before = json.loads(raw.decode("utf-8"))
     accounts = load_accounts()
+    # --module: the reports as they stand, which its rows and sections go into.
+    standing = [
+        _standing_report(path, option) if args.module else None
+        for path, option in ((args.out, "--out"), (args.survivors, "--survivors"))
+    ]
     import importlib.util
 
     if importlib.util.find_spec("mutmut") is None:
@@ -834,11 +848,10 @@ def main(argv=None) -> int:
     work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
     results = [run_module(m, t, work, args.limit) for m, t in chosen.items()]
     summary, survivors = report(results, accounts, before)
-    if args.module:  # some modules: their rows and sections go into the reports as they stand
-        if args.out.is_file():
-            summary = merged_summary(args.out.read_text(), summary)
-        if args.survivors.is_file():
-            survivors = merged_survivors(args.survivors.read_text(), survivors)
+    if standing[0] is not None:
+        summary = merged_summary(standing[0], summary)
+    if standing[1] is not None:
+        survivors = merged_survivors(standing[1], survivors)
     args.out.write_text(summary)
     args.survivors.write_text(survivors)
     if args.json:
