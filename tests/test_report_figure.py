@@ -98,3 +98,18 @@ def test_a_rotation_is_drawn_against_the_angle_tolerance():
         assert np.allclose(drawn["theta"], [50.0]) and np.allclose(drawn["X"], [10.0])
     finally:
         plt.close(fig)
+
+
+@pytest.mark.parametrize("cycles", [1, 3, 40])
+def test_the_cycles_axis_is_labelled_by_whole_cycles_only(cycles):
+    """One cycle alone is labelled 0, not fractions of a cycle about it; more are labelled by
+    whole cycles too."""
+    fig, ax = plt.subplots()
+    cyc = {"starts": list(range(cycles)), "rms": [[1e-4] * 6] * cycles}
+    _plot_cycles(ax, cyc, 0, (3e-4, 0.005))
+    fig.canvas.draw()
+    lo, hi = ax.get_xlim()
+    ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+    plt.close(fig)
+    assert ticks and all(float(t).is_integer() for t in ticks), ticks
+    assert 0 <= min(ticks) and max(ticks) <= cycles - 1

@@ -195,7 +195,9 @@ def _plot_cycles(ax, cyc: dict, learn_cycles: int, tolerance: tuple[float, float
             )
         from matplotlib.ticker import MaxNLocator
 
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=20, integer=True))  # labels never overlap
+        # Whole cycles on the axis, one alone too (two ticks at least would put fractions of a
+        # cycle there); labels never overlap.
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=20, integer=True, min_n_ticks=1))
         _legend(ax)
     else:
         ax.text(
