@@ -45,9 +45,12 @@ def run(duration: float, out: str) -> None:
 
 
 def compare(a: str, b: str) -> None:
-    first, second = np.load(a), np.load(b)
-    for name in first.files:
-        x, y = first[name], second[name]
+    from stewart_drake.base.npz import CheckedNpz
+
+    remedy = "give two archives this benchmark wrote (--out)"
+    first, second = (CheckedNpz(path, "plant_bus_run archive", remedy) for path in (a, b))
+    for name in first.arrays:
+        x, y = first.array(name), second.array(name)
         what = f"{np.abs(x - y).max():.3g}" if x.shape == y.shape else f"{x.shape} vs {y.shape}"
         print(f"max_abs_difference_{name} {what}")
 
