@@ -25,6 +25,20 @@ import numpy as np
 #: The longest camera gap ``verify`` judges across on these runs, s: two of them hold one gap
 #: of 1.34 s.
 MAX_GAP_S = 1.5
+#: The largest of their files read, bytes (a 300 s trace at 100 Hz is about 150 kB).
+MAX_FILE_BYTES = 50e6
+
+
+def read_columns(path) -> np.ndarray:
+    """One of their whitespace-separated numeric files (a trace, a time or a depth file) as
+    ``np.loadtxt`` reads it, its bytes read by stewart-drake's checked reader: a folder, a
+    device or a file over :data:`MAX_FILE_BYTES` is refused unread."""
+    import io
+
+    from stewart_drake.base.fileio import read_checked
+
+    raw = read_checked(path, "IntERAct data file", MAX_FILE_BYTES, "point --data at their files")
+    return np.loadtxt(io.BytesIO(raw))
 
 
 def optimal_shift(t_in, y_in, t_out, y_out, lo=0.0, hi=40.0, step=0.05, amplitude_step=0.01):
@@ -97,17 +111,19 @@ def relative_latency(trace, resp, time_file, depth_6d, depth_1d, step=0.05):
     """(latency, shift6D, shift1D) s: ``RMSEAlignMethod.m``'s relative latency of the 6-DoF
     platform against the 1-DoF one (module docstring), each shift searched over 0-40 s by
     ``step`` (``IntERAct_data_analysis.m``'s 0.05 s; ``RMSEAlignMethod.m`` steps 0.01 s)."""
-    data, r = np.loadtxt(trace), np.loadtxt(resp)
-    t = np.loadtxt(time_file)
-    s6, _, _ = optimal_shift(data[:, 0], data[:, TRACE_COLUMN], t, np.loadtxt(depth_6d), step=step)
-    s1, _, _ = optimal_shift(r[:, 0], r[:, 1] - r[:, 1].min(), t, np.loadtxt(depth_1d), step=step)
+    data, r = read_columns(trace), read_columns(resp)
+    t = read_columns(time_file)
+    s6, _, _ = optimal_shift(
+        data[:, 0], data[:, TRACE_COLUMN], t, read_columns(depth_6d), step=step
+    )
+    s1, _, _ = optimal_shift(r[:, 0], r[:, 1] - r[:, 1].min(), t, read_columns(depth_1d), step=step)
     return s6 - s1, s6, s1
 
 
 def camera_file(path, time_file, depth_file):
     """``path``: the camera's time file and one depth file joined into ``t [s],depth [mm]``, as
     ``stewart-drake verify`` reads a single-axis sensor's file."""
-    t, depth = np.loadtxt(time_file), np.loadtxt(depth_file)
+    t, depth = read_columns(time_file), read_columns(depth_file)
     rows = ["t [s],depth [mm]"] + [f"{float(a)!r},{float(b)!r}" for a, b in zip(t, depth)]
     path.write_text("\n".join(rows) + "\n")
     return path

@@ -22,6 +22,7 @@ from interact_method import (
     laboratory_pairs,
     laboratory_runs,
     optimal_shift,
+    read_columns,
     relative_latency,
 )
 
@@ -145,8 +146,8 @@ def test_interacts_laboratory_runs_agree_with_their_method(tmp_path, k):
     if k >= len(runs):
         pytest.skip(f"{len(runs)} runs found under {INTERACT}")
     label, trace, time_file, depth_file = runs[k]
-    t_out, y_out = np.loadtxt(time_file), np.loadtxt(depth_file)
-    data = np.loadtxt(trace)
+    t_out, y_out = read_columns(time_file), read_columns(depth_file)
+    data = read_columns(trace)
     camera = tmp_path / "camera.csv"
     lines = ["t [s],depth [mm]"] + [f"{float(t)!r},{float(y)!r}" for t, y in zip(t_out, y_out)]
     camera.write_text("\n".join(lines) + "\n")

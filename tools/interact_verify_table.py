@@ -30,6 +30,7 @@ from interact_method import (  # noqa: E402
     camera_file,
     laboratory_runs,
     optimal_shift,
+    read_columns,
     write_table,
 )
 
@@ -66,8 +67,8 @@ def main() -> None:
         print(f"[{k}/{len(runs)}] {label}", file=sys.stderr, flush=True)
         with tempfile.TemporaryDirectory() as folder:
             figures = judge(trace, time_file, depth_file, Path(folder))
-        data = np.loadtxt(trace)
-        t_out, y_out = np.loadtxt(time_file), np.loadtxt(depth_file)
+        data = read_columns(trace)
+        t_out, y_out = read_columns(time_file), read_columns(depth_file)
         their_delay, _, their_rmse = optimal_shift(data[:, 0], data[:, TRACE_COLUMN], t_out, y_out)
         delay, rms = -figures["shift_s"], figures["fidelity"]["rms"][5] * 1e3
         delays.append(delay - their_delay)
